@@ -1,0 +1,81 @@
+"""Project exceptions, all in one place.
+
+They live in ``cad`` because ``cad`` is the root of the one-way import chain
+(cad → mesh → fe → rsm → validation), so every stage can raise them.
+"""
+
+from __future__ import annotations
+
+
+class HingelabError(Exception):
+    """Base class of every error the project raises on purpose."""
+
+
+class ParameterError(HingelabError, ValueError):
+    """A parameter is outside its allowed range; the message names it, its value and the range."""
+
+
+class GeometryError(HingelabError, ValueError):
+    """The CAD kernel produced or was asked for an impossible solid."""
+
+
+class MeshQualityError(HingelabError, ValueError):
+    """A mesh has an inverted or too distorted element, or a missing named set."""
+
+
+class ConvergenceError(HingelabError, RuntimeError):
+    """A nonlinear solve did not converge.
+
+    Attributes:
+        increment: Index of the load increment that failed.
+        iteration: Last iteration reached.
+        residual: Residual norm at that iteration.
+        partial: Whatever the caller could keep (e.g. the partial loop), or None.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        increment: int,
+        iteration: int,
+        residual: float,
+        partial: object | None = None,
+    ) -> None:
+        super().__init__(
+            f"{message} (increment {increment}, iteration {iteration}, residual {residual:.3e})"
+        )
+        self.increment = increment
+        self.iteration = iteration
+        self.residual = residual
+        self.partial = partial
+
+
+class DataError(HingelabError, ValueError):
+    """Input data (a table or measurement file) is malformed; the message names file, row, column."""
+
+
+def check_range(name: str, value: float, lo: float, hi: float, *, lo_open: bool = False,
+                hi_open: bool = False) -> None:
+    """Raise ParameterError unless ``lo <= value <= hi`` (bounds optionally open).
+
+    Args:
+        name: Parameter name as the user spells it.
+        value: Its value.
+        lo: Lower bound.
+        hi: Upper bound (``float('inf')`` for none).
+        lo_open: Exclude ``lo`` itself.
+        hi_open: Exclude ``hi`` itself.
+
+    Raises:
+        ParameterError: Naming the parameter, its value and the allowed range.
+    """
+    import math
+
+    bad = not math.isfinite(value) if hi != float("inf") else math.isnan(value)
+    bad = bad or (value <= lo if lo_open else value < lo)
+    bad = bad or (value >= hi if hi_open else value > hi)
+    if bad:
+        left = "(" if lo_open else "["
+        right = ")" if hi_open else "]"
+        raise ParameterError(f"{name} must be in {left}{lo:g}, {hi:g}{right}, got {value!r}")

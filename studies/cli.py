@@ -1,0 +1,62 @@
+"""The ``hingelab`` command line: one thin entry point over the library.
+
+Each subcommand lives in its own ``studies/cmd_*.py`` module exposing
+``register(subparsers) -> None``; the module sets ``func(args) -> int`` as the
+parser default. Project errors are caught here, at the boundary, and printed as
+one clear message on stderr with exit status 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+
+from cad.errors import HingelabError
+
+SUBCOMMAND_MODULES = (
+    "studies.cmd_mesh",
+    "studies.cmd_cycle",
+    "studies.cmd_rsm",
+    "studies.cmd_trace",
+    "studies.cmd_sweep",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser with every available subcommand registered."""
+    parser = argparse.ArgumentParser(
+        prog="hingelab",
+        description="Hysteresis of precision space hinges: CAD → hex mesh → contact FE → response surfaces.",
+    )
+    parser.add_argument("-v", "--verbose", action="store_true", help="log progress to stderr")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in SUBCOMMAND_MODULES:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as err:
+            if err.name == name:  # that subcommand is not written yet; others still work
+                continue
+            raise
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the process exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+    try:
+        return int(args.func(args))
+    except (HingelabError, FileNotFoundError) as err:
+        print(f"hingelab {args.command}: error: {err}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
