@@ -1,0 +1,59 @@
+"""Mesh settings shared by the swept and the volume mesher."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from cad.errors import ParameterError, check_range
+
+
+@dataclass(frozen=True)
+class MeshSettings:
+    """Element sizes of a hinge mesh.
+
+    Attributes:
+        size_mm: Global element size at refinement 0 [mm].
+        contact_size_mm: Element size on master contact surfaces at refinement 0 [mm].
+        slave_ratio: Slave contact surfaces get ``contact_size_mm / slave_ratio`` (≥ 1:
+            the slave side is the finer one, as in the paper).
+        refinement: Refinement level; each level halves every size.
+        layers_per_mm: Element layers per mm through the thickness of swept parts at level 0.
+    """
+
+    size_mm: float = 3.0
+    contact_size_mm: float = 0.8
+    slave_ratio: float = 1.5
+    refinement: int = 0
+    layers_per_mm: float = 0.5
+
+    def __post_init__(self) -> None:
+        check_range("size_mm", self.size_mm, 0.05, 50.0)
+        check_range("contact_size_mm", self.contact_size_mm, 0.01, 20.0)
+        check_range("slave_ratio", self.slave_ratio, 1.0, 8.0)
+        check_range("layers_per_mm", self.layers_per_mm, 0.05, 20.0)
+        if not isinstance(self.refinement, int) or not 0 <= self.refinement <= 4:
+            raise ParameterError(f"refinement must be an integer in [0, 4], got {self.refinement!r}")
+        if self.contact_size_mm > self.size_mm:
+            raise ParameterError(
+                f"contact_size_mm must be ≤ size_mm ({self.size_mm:g}), got {self.contact_size_mm:g}"
+            )
+
+    @property
+    def scale(self) -> float:
+        """Factor applied to every size at this refinement level."""
+        return 0.5**self.refinement
+
+    @property
+    def global_mm(self) -> float:
+        """Global size at this level [mm]."""
+        return self.size_mm * self.scale
+
+    @property
+    def master_mm(self) -> float:
+        """Master contact-surface size at this level [mm]."""
+        return self.contact_size_mm * self.scale
+
+    @property
+    def slave_mm(self) -> float:
+        """Slave contact-surface size at this level [mm]."""
+        return self.master_mm / self.slave_ratio
