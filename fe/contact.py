@@ -1,0 +1,556 @@
+"""Incremental frictional contact on the condensed (Delassus) system.
+
+The stiffness is linear and constant; the caller condenses it once onto ``m`` contact
+points (slave nodes) and passes, per load increment,
+
+* ``W`` — the Delassus operator ``C K⁻¹ Cᵀ``, shape (3m, 3m), float64 [mm/N], symmetric
+  positive (semi)definite, rows and columns node-major ``[n, t1, t2]`` per point;
+* ``w_free`` — the relative displacement with zero contact force, shape (m, 3) [mm];
+* optionally ``G`` (3m, k) [mm per rigid amplitude] and ``e`` (k,) for floating bodies.
+
+Conventions:
+    * ``p_i = (p_n, p_t1, p_t2)`` [N] is the contact force on the slave at point ``i``
+      (``-p_i`` acts on the master); ``p_n >= 0`` is compressive.
+    * ``w = W p + G α + w_free`` (flattened node-major) is the relative displacement of
+      slave w.r.t. master [mm]; ``w_n`` is the gap (``>= 0`` open, ``W_nn > 0``).
+    * ``α`` (k,) are rigid-body amplitudes of floating bodies with equilibrium
+      ``Gᵀ p = e``. Rigid directions the contact forces cannot see are undetermined:
+      ``p`` stays unique and the minimum-norm ``α`` is returned.
+    * Signorini ``w_n >= 0, p_n >= 0, w_n p_n = 0`` and Coulomb ``|p_t| <= μ p_n`` with
+      ``Δw_t = w_t - w_t_prev = 0`` where ``|p_t| < μ p_n``, else ``Δw_t = -γ p_t/|p_t|``,
+      ``γ >= 0``, written as the Alart–Curnier equations ``C(p) = p - λ(p - r g) = 0`` of
+      :mod:`fe.contact_law` with ``g = (w_n, Δw_t)``.
+
+Algorithm: semismooth (generalised) Newton on ``C(p, α) = 0, Gᵀp = e`` with the active
+set read off the trial force. Open points are eliminated (``p = 0``), the component of a
+slipping point's tangential force along the slip direction is eliminated
+(``p_t·u = μ p_n``), so each step factorises a dense system of size
+``3 n_stick + 2 n_slip + n_frictionless`` (``+ k`` rigid amplitudes via a k×k Schur
+complement solved by least squares with ``rcond``, which gives the minimum-norm ``α``).
+Globalisation: Armijo backtracking on the merit ``φ = ½|C/r|² + ½|(Gᵀp - e)/r̄|²``;
+if no descent step exists (or the step matrix is singular) ``r`` is rescaled by the next
+factor of ``RESCUE_FACTORS``, which changes the path but not the solution, so the
+iteration cannot cycle indefinitely; it stops at ``max_iter``.
+
+Convergence: the scaled residual ``ρ = max(|C/r|_∞ / d_ref, |Gᵀp - e|_∞ / f_ref)`` must
+drop to ``tol``, where ``d_ref = max(|W p|_∞, |G α|_∞, |w_free - (0, w_t_prev)|_∞)`` [mm]
+and ``f_ref = max(|e|_∞, ||G|ᵀ |p||_∞)`` [N]. ``C/r`` is the violation in displacement
+units (penetration, stick drift, or force/r), so ``ρ`` is a relative error that is
+invariant under scaling the load and independent of units.
+
+Energy: for increment ``p_prev → p`` the consistent (trapezoidal) works are
+``friction_work_i = -½ (p_t,prev + p_t)·Δw_t`` and
+``normal_work_i = -½ (p_n,prev + p_n) Δw_n``. With ``K u = f + Cᵀ p`` and the
+trapezoidal external work ``½ (f_prev + f)·Δu`` they satisfy exactly
+``W_ext = ΔE_elastic + Σ (friction_work + normal_work)``; over a closed cycle the
+summed friction work therefore equals the loop area. ``dissipation_i = -p_t·Δw_t >= 0``
+is the backward-Euler value (equal to the above in the limit of small increments).
+
+Example:
+    >>> import numpy as np
+    >>> W = np.diag([1.0, 2.0, 2.0])            # one point, mm/N
+    >>> w_free = np.array([[-1.0, 0.5, 0.0]])   # 1 mm interference, 0.5 mm drag
+    >>> res = solve_increment(W, w_free, ContactState.initial(1), ContactSettings(mu=0.2))
+    >>> res.state.p.round(12).tolist(), res.n_slip
+    ([[1.0, -0.2, 0.0]], 1)
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+import scipy.linalg as sla
+
+from cad.errors import ConvergenceError, ParameterError, check_range
+from fe.contact_law import ContactStatus, CoulombStep, coulomb_step, slip_frame
+
+FloatArray = npt.NDArray[np.float64]
+
+RESCUE_FACTORS = (0.1, 10.0, 0.01, 100.0, 1e-3, 1e3)
+"""Factors applied in turn to ``r`` when Newton stalls (see module docstring)."""
+
+__all__ = [
+    "ContactSettings",
+    "ContactState",
+    "ContactStatus",
+    "IncrementResult",
+    "complementarity",
+    "solve_increment",
+]
+
+
+@dataclass(frozen=True)
+class ContactSettings:
+    """Options of :func:`solve_increment`.
+
+    Attributes:
+        mu: Coulomb friction coefficient, ``>= 0``.
+        r_scale: Augmentation factor; point ``i`` uses ``r_i = r_scale / mean(diag W_ii)``
+            [N/mm]. Algorithmic only: the converged solution does not depend on it.
+        tol: Tolerance on the scaled residual ``ρ`` (module docstring).
+        max_iter: Newton iteration cap per increment.
+        warm_start: Start from the previous increment's ``p`` and ``α`` (else from zero).
+        armijo: Sufficient-decrease constant of the line search.
+        min_step: Smallest line-search step before the ``r`` rescue is triggered.
+        rigid_rcond: Relative singular-value cut for undetermined rigid directions.
+    """
+
+    mu: float = 0.0
+    r_scale: float = 1.0
+    tol: float = 1e-10
+    max_iter: int = 60
+    warm_start: bool = True
+    armijo: float = 1e-4
+    min_step: float = 1e-4
+    rigid_rcond: float = 1e-10
+
+    def __post_init__(self) -> None:
+        check_range("mu", self.mu, 0.0, float("inf"))
+        check_range("r_scale", self.r_scale, 0.0, float("inf"), lo_open=True, hi_open=True)
+        check_range("tol", self.tol, 0.0, 1.0, lo_open=True, hi_open=True)
+        check_range("max_iter", self.max_iter, 1, float("inf"))
+        check_range("armijo", self.armijo, 0.0, 0.5, lo_open=True, hi_open=True)
+        check_range("min_step", self.min_step, 0.0, 1.0, lo_open=True, hi_open=True)
+        check_range("rigid_rcond", self.rigid_rcond, 0.0, 1.0, lo_open=True, hi_open=True)
+
+
+def _frozen(a: npt.ArrayLike, dtype: type, shape: tuple[int, ...], name: str) -> npt.NDArray[np.generic]:
+    arr = np.array(a, dtype=dtype, copy=True)
+    if arr.shape != shape:
+        raise ParameterError(f"{name} must have shape {shape}, got {arr.shape}")
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class ContactState:
+    """Converged contact state after an increment (arrays are read-only copies).
+
+    Attributes:
+        p: Contact forces on the slave, shape (m, 3), float64 [N], frame [n, t1, t2].
+        w: Relative displacements, shape (m, 3), float64 [mm]; ``w[:, 1:]`` is the
+            tangential reference ``w_t_prev`` of the next increment.
+        status: ContactStatus codes, shape (m,), int8.
+        alpha: Rigid-body amplitudes, shape (k,), float64 (units set by ``G``).
+    """
+
+    p: FloatArray
+    w: FloatArray
+    status: npt.NDArray[np.int8]
+    alpha: FloatArray
+
+    def __post_init__(self) -> None:
+        m = np.shape(self.p)[0] if np.ndim(self.p) == 2 else -1
+        object.__setattr__(self, "p", _frozen(self.p, np.float64, (m, 3), "p"))
+        object.__setattr__(self, "w", _frozen(self.w, np.float64, (m, 3), "w"))
+        object.__setattr__(self, "status", _frozen(self.status, np.int8, (m,), "status"))
+        k = np.size(self.alpha)
+        object.__setattr__(self, "alpha", _frozen(np.ravel(self.alpha), np.float64, (k,), "alpha"))
+
+    @classmethod
+    def initial(cls, n_points: int, n_rigid: int = 0, w: FloatArray | None = None) -> ContactState:
+        """Return the unloaded state: no force, all open, ``α = 0``.
+
+        Args:
+            n_points: Number of contact points ``m``.
+            n_rigid: Number of rigid amplitudes ``k``.
+            w: Relative displacement at zero load, shape (m, 3) [mm] (default zero); its
+                tangential part is the slip reference, its normal part only enters
+                ``normal_work`` of the first increment.
+
+        Returns:
+            The initial state.
+        """
+        w0 = np.zeros((n_points, 3)) if w is None else w
+        status = np.zeros(n_points, dtype=np.int8)
+        return cls(np.zeros((n_points, 3)), w0, status, np.zeros(n_rigid))
+
+
+@dataclass(frozen=True)
+class IncrementResult:
+    """Outcome of one increment.
+
+    Attributes:
+        state: The converged state.
+        iterations: Newton iterations used.
+        residuals: Scaled residual ``ρ`` at every iterate (the last is below ``tol``).
+        n_open: Number of open points.
+        n_stick: Number of sticking points.
+        n_slip: Number of slipping points.
+        friction_work: ``-½ (p_t,prev + p_t)·Δw_t``, shape (m,), float64 [N·mm].
+        normal_work: ``-½ (p_n,prev + p_n) Δw_n``, shape (m,), float64 [N·mm].
+        dissipation: ``-p_t·Δw_t >= 0`` (backward Euler), shape (m,), float64 [N·mm].
+        rescues: How many times ``r`` was rescaled.
+    """
+
+    state: ContactState
+    iterations: int
+    residuals: tuple[float, ...]
+    n_open: int
+    n_stick: int
+    n_slip: int
+    friction_work: FloatArray
+    normal_work: FloatArray
+    dissipation: FloatArray
+    rescues: int
+
+
+class _Problem(NamedTuple):
+    W: FloatArray  # (3m, 3m)
+    w_free: FloatArray  # (m, 3)
+    G: FloatArray  # (3m, k), k may be 0
+    e: FloatArray  # (k,)
+    w_t_prev: FloatArray  # (m, 2)
+    mu: float
+
+
+class _Iterate(NamedTuple):
+    p: FloatArray  # (m, 3)
+    alpha: FloatArray  # (k,)
+    w: FloatArray  # (m, 3)
+    g: FloatArray  # (m, 3) = (w_n, Δw_t)
+    law: CoulombStep
+    C: FloatArray  # (m, 3) complementarity residual [N]
+    eq: FloatArray  # (k,) equilibrium residual [N]
+    merit: float
+    rho: float
+
+
+def _evaluate(prob: _Problem, p: FloatArray, alpha: FloatArray, r: FloatArray) -> _Iterate:
+    Wp = (prob.W @ p.ravel()).reshape(-1, 3)
+    Ga = (prob.G @ alpha).reshape(-1, 3)
+    w = Wp + Ga + prob.w_free
+    g = w.copy()
+    g[:, 1:] -= prob.w_t_prev
+    law = coulomb_step(g, p, prob.mu, r)
+    C = p - law.traction
+    eq = prob.G.T @ p.ravel() - prob.e
+    r_bar = float(np.mean(r))
+    Cr = C / r[:, None]
+    merit = 0.5 * float(np.sum(Cr**2)) + 0.5 * float(np.sum((eq / r_bar) ** 2))
+    drift = prob.w_free.copy()
+    drift[:, 1:] -= prob.w_t_prev
+    d_ref = max(_amax(Wp), _amax(Ga), _amax(drift))
+    f_ref = max(_amax(prob.e), _amax(np.abs(prob.G).T @ np.abs(p.ravel())))
+    rho = max(_ratio(_amax(Cr), d_ref), _ratio(_amax(eq), f_ref))
+    return _Iterate(p, alpha, w, g, law, C, eq, merit, rho)
+
+
+def _amax(a: FloatArray) -> float:
+    return float(np.max(np.abs(a))) if a.size else 0.0
+
+
+def _ratio(num: float, ref: float) -> float:
+    return 0.0 if num == 0.0 else num / max(ref, np.finfo(float).tiny)
+
+
+class _Step(NamedTuple):
+    dp: FloatArray  # (m, 3)
+    alpha_new: FloatArray  # (k,)
+
+
+def _newton_step(prob: _Problem, it: _Iterate, r: FloatArray, cut: float) -> _Step | None:
+    """Solve the reduced generalised-Newton system; None if it is singular.
+
+    Unknowns per closed point (slots n, t1, t2): stick (dp_n, dp_t1, dp_t2); slip
+    (dp_n, b) with ``dp_t = (μ(p_n + dp_n) - p_t·u) u + b v``; frictionless (dp_n) with
+    ``dp_t = -p_t``. Rows (divided by r): ``dw_n = -w_n``; stick ``dw_t = -Δw_t``; slip
+    ``(1-κ)/r b + κ v·dw_t = -C_t·v/r``. Open points get ``dp = -p``.
+    """
+    status = it.law.status
+    closed = np.flatnonzero(status != ContactStatus.OPEN)
+    u, kappa = slip_frame(it.g, it.p, prob.mu, r)
+    is_slip = (status[closed] == ContactStatus.SLIP) & (prob.mu > 0.0)
+    is_free = (status[closed] == ContactStatus.SLIP) & (prob.mu == 0.0)
+    u_c, kap_c = u[closed], kappa[closed]
+    v_c = np.stack([-u_c[:, 1], u_c[:, 0]], axis=1)  # (c, 2), u rotated by +90°
+
+    s = -it.p.copy()  # shift: dp = T dq + s
+    s[closed] = 0.0
+    C_c = it.C[closed]
+    sl = closed[is_slip]
+    a0 = prob.mu * it.p[sl, 0] - np.sum(it.p[sl, 1:] * u_c[is_slip], axis=1)
+    s[sl, 1:] = a0[:, None] * u_c[is_slip]
+    s[closed[is_free], 1:] = -it.p[closed[is_free], 1:]
+
+    # Target of the rows (before moving the shift to the right-hand side).
+    target = -it.g[closed].copy()  # (c, 3): -w_n, -Δw_t
+    target[is_slip, 1] = -np.sum(C_c[is_slip, 1:] * v_c[is_slip], axis=1) / r[sl]
+    Ws = (prob.W @ s.ravel()).reshape(-1, 3)[closed]  # (c, 3)
+    idx = (3 * closed[:, None] + np.arange(3)).ravel()
+    J = prob.W[np.ix_(idx, idx)]  # (3c, 3c) copy
+    Gc = prob.G[idx].reshape(len(closed), 3, -1)  # (c, 3, k)
+    jn, j1, j2 = (3 * np.flatnonzero(is_slip) + a for a in range(3))
+    mu = prob.mu
+    # Column transform T (slip points): n-col += μ u·t-cols, t1-col := v·t-cols.
+    ux, uy = u_c[is_slip, 0], u_c[is_slip, 1]
+    vx, vy = v_c[is_slip, 0], v_c[is_slip, 1]
+    col1, col2 = J[:, j1], J[:, j2]
+    J[:, jn] += mu * (col1 * ux + col2 * uy)
+    J[:, j1] = col1 * vx + col2 * vy
+    Gcol = Gc.copy()  # columns of Gᵀ T
+    g1, g2 = Gc[is_slip, 1], Gc[is_slip, 2]
+    Gcol[is_slip, 0] += mu * (g1 * ux[:, None] + g2 * uy[:, None])
+    Gcol[is_slip, 1] = g1 * vx[:, None] + g2 * vy[:, None]
+    # Row transform R (slip points): t1-row := κ v·t-rows (+ diagonal (1-κ)/r).
+    ks = kap_c[is_slip]
+    row1, row2 = J[j1], J[j2]
+    J[j1] = ks[:, None] * (row1 * vx[:, None] + row2 * vy[:, None])
+    J[j1, j1] += (1.0 - ks) / r[sl]
+    Grow = Gc.copy()
+    Grow[is_slip, 1] = ks[:, None] * (g1 * vx[:, None] + g2 * vy[:, None])
+    rhs = target.copy()
+    rhs[:, 0] -= Ws[:, 0]
+    rhs[~is_slip, 1:] -= Ws[~is_slip, 1:]
+    rhs[is_slip, 1] -= ks * (Ws[is_slip, 1] * vx + Ws[is_slip, 2] * vy)
+
+    keep = np.ones((len(closed), 3), dtype=bool)
+    keep[is_slip, 2] = False
+    keep[is_free, 1:] = False
+    kf = keep.ravel()
+    if not kf.all():
+        J = J[np.ix_(kf, kf)]
+    Jalpha = Grow.reshape(3 * len(closed), -1)[kf]  # (n_q, k)
+    H = Gcol.reshape(3 * len(closed), -1)[kf].T  # (k, n_q)
+    b = rhs.ravel()[kf] + Jalpha @ it.alpha
+    h = prob.e - prob.G.T @ (it.p + s).ravel()
+
+    dq, alpha_new = _solve_bordered(J, Jalpha, H, b, h, cut)
+    if dq is None:
+        return None
+    full = np.zeros(3 * len(closed))
+    full[kf] = dq
+    dqc = full.reshape(-1, 3)
+    dp = s
+    dp[closed, 0] += dqc[:, 0]
+    dp[closed[~is_slip & ~is_free], 1:] += dqc[~is_slip & ~is_free, 1:]
+    dp[sl, 1:] += mu * dqc[is_slip, 0, None] * u_c[is_slip] + dqc[is_slip, 1, None] * v_c[is_slip]
+    return _Step(dp, alpha_new)
+
+
+def _solve_bordered(
+    J: FloatArray,
+    Jalpha: FloatArray,
+    H: FloatArray,
+    b: FloatArray,
+    h: FloatArray,
+    cut: float,
+) -> tuple[FloatArray | None, FloatArray]:
+    """Solve ``J x + Jα a = b, H x = h`` with min-norm ``a``; ``(None, ·)`` if J singular.
+
+    Singular values of the k×k Schur complement ``S = H J⁻¹ Jα`` below ``cut`` are
+    treated as zero (undetermined rigid directions get no component of ``a``).
+    """
+    k = Jalpha.shape[1]
+    if J.shape[0] == 0:
+        return np.zeros(0), np.zeros(k)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sla.LinAlgWarning)
+        try:
+            lu = sla.lu_factor(J, overwrite_a=True, check_finite=False)
+        except sla.LinAlgWarning:
+            return None, np.zeros(k)
+    diag = np.abs(np.diag(lu[0]))
+    if not np.all(np.isfinite(diag)) or diag.min() <= 1e3 * np.finfo(float).eps * diag.max():
+        return None, np.zeros(k)
+    if k == 0:
+        return sla.lu_solve(lu, b, check_finite=False), np.zeros(0)
+    Y = sla.lu_solve(lu, np.column_stack([b, Jalpha]), check_finite=False)
+    U, sv, Vt = np.linalg.svd(H @ Y[:, 1:])  # Schur complement S, (k, k)
+    good = sv > max(cut, float(sv[0]) * np.finfo(float).eps * k)
+    coef = (U[:, good].T @ (H @ Y[:, 0] - h)) / sv[good]
+    a = Vt[good].T @ coef
+    return Y[:, 0] - Y[:, 1:] @ a, a
+
+
+def _validate(
+    W: FloatArray, w_free: FloatArray, state_prev: ContactState, G: FloatArray | None,
+    e: FloatArray | None,
+) -> _Problem:
+    m = state_prev.p.shape[0]
+    W = np.asarray(W, dtype=np.float64)
+    if W.shape != (3 * m, 3 * m):
+        raise ParameterError(f"W must have shape {(3 * m, 3 * m)} for {m} points, got {W.shape}")
+    w_free = np.asarray(w_free, dtype=np.float64)
+    if w_free.shape != (m, 3):
+        raise ParameterError(f"w_free must have shape {(m, 3)}, got {w_free.shape}")
+    if not (np.all(np.isfinite(W)) and np.all(np.isfinite(w_free))):
+        raise ParameterError("W and w_free must be finite, got NaN or inf")
+    d_n = np.diag(W)[0::3]
+    if np.any(d_n <= 0.0):
+        i = int(np.argmin(d_n))
+        raise ParameterError(f"W_nn must be > 0 at every point, got {d_n[i]:g} at point {i}")
+    k = state_prev.alpha.shape[0]
+    if (G is None) != (e is None):
+        raise ParameterError("G and e must be given together, got only one of them")
+    G_arr = np.zeros((3 * m, k)) if G is None else np.asarray(G, dtype=np.float64)
+    e_arr = np.zeros(k) if e is None else np.asarray(e, dtype=np.float64)
+    if G_arr.shape != (3 * m, k) or e_arr.shape != (k,):
+        raise ParameterError(
+            f"G and e must have shapes {(3 * m, k)} and {(k,)} (k from state_prev.alpha), "
+            f"got {G_arr.shape} and {e_arr.shape}"
+        )
+    return _Problem(W, w_free, G_arr, e_arr, np.array(state_prev.w[:, 1:]), 0.0)
+
+
+def _line_search(
+    prob: _Problem, it: _Iterate, step: _Step, r: FloatArray, settings: ContactSettings
+) -> _Iterate | None:
+    """Armijo backtracking on the merit; None if no step >= min_step decreases it."""
+    tau = 1.0
+    while tau >= settings.min_step:
+        alpha = it.alpha + tau * (step.alpha_new - it.alpha)
+        trial = _evaluate(prob, it.p + tau * step.dp, alpha, r)
+        if trial.merit <= (1.0 - 2.0 * settings.armijo * tau) * it.merit:
+            return trial
+        tau *= 0.5
+    return None
+
+
+def solve_increment(
+    W: FloatArray,
+    w_free: FloatArray,
+    state_prev: ContactState,
+    settings: ContactSettings,
+    *,
+    G: FloatArray | None = None,
+    e: FloatArray | None = None,
+    increment: int = 0,
+) -> IncrementResult:
+    """Solve one quasi-static increment of the frictional contact problem.
+
+    Args:
+        W: Delassus operator, shape (3m, 3m), float64 [mm/N], node-major [n, t1, t2].
+        w_free: Relative displacement at zero contact force, shape (m, 3), float64 [mm].
+        state_prev: Converged state of the previous increment (``ContactState.initial``
+            for the first); supplies ``w_t_prev`` and the warm start. ``k`` is
+            ``state_prev.alpha.size``.
+        settings: Friction coefficient and solver options.
+        G: Rigid-body map of floating bodies, shape (3m, k), float64 [mm per unit α].
+        e: Load on the rigid amplitudes, ``Gᵀ p = e``, shape (k,), float64 [N].
+        increment: Index reported in a ConvergenceError.
+
+    Returns:
+        The new state, iteration count, residual history, status counts and works.
+
+    Raises:
+        ParameterError: On inconsistent shapes or non-finite input.
+        ConvergenceError: If ``ρ > tol`` after ``max_iter`` iterations; ``partial``
+            holds the last iterate as a ContactState.
+    """
+    prob = _validate(W, w_free, state_prev, G, e)._replace(mu=settings.mu)
+    m, k = state_prev.p.shape[0], state_prev.alpha.shape[0]
+    blocks = np.diagonal(prob.W).reshape(m, 3)
+    r = settings.r_scale / blocks.mean(axis=1)
+    col_sq = float(np.max(np.sum(prob.G**2, axis=0))) if k else 0.0
+    cut = settings.rigid_rcond * col_sq / float(np.mean(blocks))
+    if settings.warm_start:
+        p0, a0 = np.array(state_prev.p), np.array(state_prev.alpha)
+    else:
+        p0, a0 = np.zeros((m, 3)), np.zeros(k)
+    it = _evaluate(prob, p0, a0, r)
+    history, rescues = [it.rho], 0
+    n_iter = 0
+    while it.rho > settings.tol:
+        if n_iter == settings.max_iter:
+            partial = ContactState(it.p, it.w, it.law.status, it.alpha)
+            raise ConvergenceError(
+                "contact Newton did not converge", increment=increment, iteration=n_iter,
+                residual=it.rho, partial=partial,
+            )
+        n_iter += 1
+        step = _newton_step(prob, it, r, cut)
+        new = None if step is None else _line_search(prob, it, step, r, settings)
+        if new is None:
+            # Stalled: rescale r (same solution, different merit and active-set path).
+            factor = RESCUE_FACTORS[rescues % len(RESCUE_FACTORS)]
+            r = settings.r_scale * factor / blocks.mean(axis=1)
+            rescues += 1
+            new = _evaluate(prob, it.p, it.alpha, r)
+        it = new
+        history.append(it.rho)
+    return _result(prob, state_prev, it, n_iter, history, rescues)
+
+
+def _result(
+    prob: _Problem, prev: ContactState, it: _Iterate, n_iter: int, history: list[float],
+    rescues: int,
+) -> IncrementResult:
+    status = it.law.status
+    dw = it.w - prev.w
+    p_mid = 0.5 * (prev.p + it.p)
+    friction_work = -np.sum(p_mid[:, 1:] * dw[:, 1:], axis=1)
+    normal_work = -p_mid[:, 0] * dw[:, 0]
+    dissipation = -np.sum(it.p[:, 1:] * dw[:, 1:], axis=1)
+    return IncrementResult(
+        state=ContactState(it.p, it.w, status, it.alpha),
+        iterations=n_iter,
+        residuals=tuple(history),
+        n_open=int(np.sum(status == ContactStatus.OPEN)),
+        n_stick=int(np.sum(status == ContactStatus.STICK)),
+        n_slip=int(np.sum(status == ContactStatus.SLIP)),
+        friction_work=friction_work,
+        normal_work=normal_work,
+        dissipation=dissipation,
+        rescues=rescues,
+    )
+
+
+class Complementarity(NamedTuple):
+    """Alart–Curnier residual and its generalised Jacobian (see :func:`complementarity`).
+
+    Attributes:
+        residual: ``C``, shape (m, 3), float64 [N].
+        jacobian: ``∂C/∂p`` with α fixed, shape (3m, 3m), float64 [-], node-major.
+        status: ContactStatus codes of the trial, shape (m,), int8.
+    """
+
+    residual: FloatArray
+    jacobian: FloatArray
+    status: npt.NDArray[np.int8]
+
+
+def complementarity(
+    W: FloatArray,
+    w_free: FloatArray,
+    state_prev: ContactState,
+    p: FloatArray,
+    settings: ContactSettings,
+    *,
+    alpha: FloatArray | None = None,
+    G: FloatArray | None = None,
+) -> Complementarity:
+    """Evaluate ``C(p) = p - λ(p - r g(p))`` and ``∂C/∂p = (I - D) + r D W`` densely.
+
+    Meant for checks and small problems (it forms a (3m, 3m) matrix).
+
+    Args:
+        W: Delassus operator, shape (3m, 3m), float64 [mm/N].
+        w_free: Free relative displacement, shape (m, 3), float64 [mm].
+        state_prev: Previous converged state (``w_t_prev``).
+        p: Contact forces at which to evaluate, shape (m, 3), float64 [N].
+        settings: Supplies ``mu`` and ``r_scale``.
+        alpha: Rigid amplitudes, shape (k,) (default zero).
+        G: Rigid-body map, shape (3m, k) (default none).
+
+    Returns:
+        Residual, Jacobian and trial status.
+    """
+    k = state_prev.alpha.shape[0]
+    e = None if G is None else np.zeros(k)
+    prob = _validate(W, w_free, state_prev, G, e)._replace(mu=settings.mu)
+    m = p.shape[0]
+    r = settings.r_scale / np.diagonal(prob.W).reshape(m, 3).mean(axis=1)
+    a = np.zeros(k) if alpha is None else np.asarray(alpha, dtype=np.float64)
+    it = _evaluate(prob, np.asarray(p, dtype=np.float64), a, r)
+    D = it.law.tangent  # (m, 3, 3)
+    jac = np.zeros((3 * m, 3 * m))
+    rows = np.arange(3 * m).reshape(m, 3)
+    jac[rows[:, :, None], rows[:, None, :]] = np.eye(3) - D
+    rD = r[:, None, None] * D
+    jac += np.einsum("mab,mbj->maj", rD, prob.W.reshape(m, 3, 3 * m)).reshape(3 * m, 3 * m)
+    return Complementarity(it.C, jac, it.law.status)
