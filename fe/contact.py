@@ -118,8 +118,10 @@ class ContactSettings:
         check_range("rigid_rcond", self.rigid_rcond, 0.0, 1.0, lo_open=True, hi_open=True)
 
 
-def _frozen(a: npt.ArrayLike, dtype: type, shape: tuple[int, ...], name: str) -> npt.NDArray[np.generic]:
-    arr = np.array(a, dtype=dtype, copy=True)
+def _frozen(
+    a: npt.ArrayLike, dtype: type, shape: tuple[int, ...], name: str
+) -> npt.NDArray[np.generic]:
+    arr: npt.NDArray[np.generic] = np.array(a, dtype=dtype, copy=True)
     if arr.shape != shape:
         raise ParameterError(f"{name} must have shape {shape}, got {arr.shape}")
     arr.setflags(write=False)
@@ -253,8 +255,13 @@ class _Step(NamedTuple):
     alpha_new: FloatArray  # (k,)
 
 
-def _newton_step(prob: _Problem, it: _Iterate, r: FloatArray, cut: float) -> _Step | None:
+def _newton_step(
+    prob: _Problem, it: _Iterate, r: FloatArray, cut: float, *, close_open: bool = False
+) -> _Step | None:
     """Solve the reduced generalised-Newton system; None if it is singular.
+
+    With ``close_open`` the open points are treated as closed and frictionless (a
+    bilateral predictor that lets a floating body that touches nothing find contact).
 
     Unknowns per closed point (slots n, t1, t2): stick (dp_n, dp_t1, dp_t2); slip
     (dp_n, b) with ``dp_t = (μ(p_n + dp_n) - p_t·u) u + b v``; frictionless (dp_n) with
@@ -262,10 +269,11 @@ def _newton_step(prob: _Problem, it: _Iterate, r: FloatArray, cut: float) -> _St
     ``(1-κ)/r b + κ v·dw_t = -C_t·v/r``. Open points get ``dp = -p``.
     """
     status = it.law.status
-    closed = np.flatnonzero(status != ContactStatus.OPEN)
+    forced = status == ContactStatus.OPEN if close_open else np.zeros(len(status), dtype=bool)
+    closed = np.flatnonzero((status != ContactStatus.OPEN) | forced)
     u, kappa = slip_frame(it.g, it.p, prob.mu, r)
     is_slip = (status[closed] == ContactStatus.SLIP) & (prob.mu > 0.0)
-    is_free = (status[closed] == ContactStatus.SLIP) & (prob.mu == 0.0)
+    is_free = ((status[closed] == ContactStatus.SLIP) & (prob.mu == 0.0)) | forced[closed]
     u_c, kap_c = u[closed], kappa[closed]
     v_c = np.stack([-u_c[:, 1], u_c[:, 0]], axis=1)  # (c, 2), u rotated by +90°
 
@@ -283,7 +291,7 @@ def _newton_step(prob: _Problem, it: _Iterate, r: FloatArray, cut: float) -> _St
     Ws = (prob.W @ s.ravel()).reshape(-1, 3)[closed]  # (c, 3)
     idx = (3 * closed[:, None] + np.arange(3)).ravel()
     J = prob.W[np.ix_(idx, idx)]  # (3c, 3c) copy
-    Gc = prob.G[idx].reshape(len(closed), 3, -1)  # (c, 3, k)
+    Gc = prob.G[idx].reshape(len(closed), 3, prob.G.shape[1])  # (c, 3, k)
     jn, j1, j2 = (3 * np.flatnonzero(is_slip) + a for a in range(3))
     mu = prob.mu
     # Column transform T (slip points): n-col += μ u·t-cols, t1-col := v·t-cols.
@@ -314,8 +322,8 @@ def _newton_step(prob: _Problem, it: _Iterate, r: FloatArray, cut: float) -> _St
     kf = keep.ravel()
     if not kf.all():
         J = J[np.ix_(kf, kf)]
-    Jalpha = Grow.reshape(3 * len(closed), -1)[kf]  # (n_q, k)
-    H = Gcol.reshape(3 * len(closed), -1)[kf].T  # (k, n_q)
+    Jalpha = Grow.reshape(3 * len(closed), prob.G.shape[1])[kf]  # (n_q, k)
+    H = Gcol.reshape(3 * len(closed), prob.G.shape[1])[kf].T  # (k, n_q)
     b = rhs.ravel()[kf] + Jalpha @ it.alpha
     h = prob.e - prob.G.T @ (it.p + s).ravel()
 
@@ -368,7 +376,10 @@ def _solve_bordered(
 
 
 def _validate(
-    W: FloatArray, w_free: FloatArray, state_prev: ContactState, G: FloatArray | None,
+    W: FloatArray,
+    w_free: FloatArray,
+    state_prev: ContactState,
+    G: FloatArray | None,
     e: FloatArray | None,
 ) -> _Problem:
     m = state_prev.p.shape[0]
@@ -445,7 +456,8 @@ def solve_increment(
     prob = _validate(W, w_free, state_prev, G, e)._replace(mu=settings.mu)
     m, k = state_prev.p.shape[0], state_prev.alpha.shape[0]
     blocks = np.diagonal(prob.W).reshape(m, 3)
-    r = settings.r_scale / blocks.mean(axis=1)
+    r_base = settings.r_scale / blocks.mean(axis=1)
+    r = r_base
     col_sq = float(np.max(np.sum(prob.G**2, axis=0))) if k else 0.0
     cut = settings.rigid_rcond * col_sq / float(np.mean(blocks))
     if settings.warm_start:
@@ -459,25 +471,53 @@ def solve_increment(
         if n_iter == settings.max_iter:
             partial = ContactState(it.p, it.w, it.law.status, it.alpha)
             raise ConvergenceError(
-                "contact Newton did not converge", increment=increment, iteration=n_iter,
-                residual=it.rho, partial=partial,
+                "contact Newton did not converge",
+                increment=increment,
+                iteration=n_iter,
+                residual=it.rho,
+                partial=partial,
             )
         n_iter += 1
         step = _newton_step(prob, it, r, cut)
         new = None if step is None else _line_search(prob, it, step, r, settings)
         if new is None:
-            # Stalled: rescale r (same solution, different merit and active-set path).
-            factor = RESCUE_FACTORS[rescues % len(RESCUE_FACTORS)]
-            r = settings.r_scale * factor / blocks.mean(axis=1)
+            rescued = _rescue(prob, it, r, r_base, cut, rescues)
             rescues += 1
-            new = _evaluate(prob, it.p, it.alpha, r)
+            r, new = rescued.law_r, rescued.iterate
         it = new
         history.append(it.rho)
     return _result(prob, state_prev, it, n_iter, history, rescues)
 
 
+class _Rescued(NamedTuple):
+    iterate: _Iterate
+    law_r: FloatArray
+
+
+def _rescue(
+    prob: _Problem, it: _Iterate, r: FloatArray, r_base: FloatArray, cut: float, count: int
+) -> _Rescued:
+    """Leave a stall: alternately a bilateral predictor (if points are open) and a new r.
+
+    The predictor takes the full step with every open point closed (frictionless); the r
+    change (``r_base`` times the next of ``RESCUE_FACTORS``) keeps the iterate but changes
+    the merit and the active-set path. Neither changes the solution, and the alternation
+    keeps Newton from repeating a cycle.
+    """
+    if count % 2 == 0 and np.any(it.law.status == ContactStatus.OPEN):
+        step = _newton_step(prob, it, r, cut, close_open=True)
+        if step is not None:
+            return _Rescued(_evaluate(prob, it.p + step.dp, step.alpha_new, r), r)
+    new_r = r_base * RESCUE_FACTORS[(count // 2) % len(RESCUE_FACTORS)]
+    return _Rescued(_evaluate(prob, it.p, it.alpha, new_r), new_r)
+
+
 def _result(
-    prob: _Problem, prev: ContactState, it: _Iterate, n_iter: int, history: list[float],
+    prob: _Problem,
+    prev: ContactState,
+    it: _Iterate,
+    n_iter: int,
+    history: list[float],
     rescues: int,
 ) -> IncrementResult:
     status = it.law.status
