@@ -16,7 +16,7 @@ from enum import Enum
 import contourpy
 import numpy as np
 import numpy.typing as npt
-from scipy import optimize
+from scipy import ndimage, optimize
 
 from cad.errors import ParameterError
 from rsm.polynomial import ResponseSurface, gradient, predict
@@ -74,6 +74,8 @@ class ThresholdRegion:
         boundary: Curves where ỹ equals the threshold, each of shape (n_vertices, 2)
             in physical units of (first, second) variable.
         area_fraction: Share of the box inside the region, in [0, 1].
+        n_parts: Number of disconnected pieces of the region on the grid (the paper's
+            modified hinge has two, its regions b)-1 and b)-3).
         lower: Smallest value of each of the two variables inside the region
             (NaN if the region is empty), shape (2,).
         upper: Largest such value, shape (2,).
@@ -89,6 +91,7 @@ class ThresholdRegion:
     mask: BoolArray
     boundary: tuple[FloatArray, ...]
     area_fraction: float
+    n_parts: int
     lower: FloatArray
     upper: FloatArray
 
@@ -287,6 +290,7 @@ def threshold_region(
         mask=mask,
         boundary=tuple(curves),
         area_fraction=float(np.mean(mask)),
+        n_parts=int(ndimage.label(mask)[1]),
         lower=allpts.min(axis=0) if len(allpts) else np.full(2, math.nan),
         upper=allpts.max(axis=0) if len(allpts) else np.full(2, math.nan),
     )

@@ -1,9 +1,14 @@
 """Read and validate the CSV tables that response surfaces are fitted to.
 
 A table is a CSV file with one header row and one sample point per row. Every
-error names the file, and where it can, the row (1-based, counting the header
-as row 1, as a spreadsheet does) and the column, so that a user can go straight
-to the bad cell.
+error names the file, and where it can, the line of the file (the header is
+line 1, as in an editor or a spreadsheet) and the column, so that a user can go
+straight to the bad cell.
+
+Each sample point gets a label that follows it into fits, plots and reports:
+``point 17`` when the table has a ``point_id`` column (a trace id, see
+:mod:`rsm.trace`; ``hingelab trace DB 17`` then shows its files), otherwise
+``row 3`` for the third data row.
 """
 
 from __future__ import annotations
@@ -30,11 +35,13 @@ class Table:
         path: The file it was read from.
         columns: Header names in file order.
         rows: The data cells, one tuple per data row, in file order.
+        line_numbers: The file line of each data row (the header is line 1).
     """
 
     path: Path
     columns: tuple[str, ...]
     rows: tuple[tuple[str, ...], ...]
+    line_numbers: tuple[int, ...]
 
     @property
     def n_rows(self) -> int:
@@ -51,8 +58,8 @@ class XY:
         y: Response, shape (n_points,), float64.
         x_names: Column names of ``x``, in column order of ``x``.
         y_name: Column name of ``y``.
-        labels: One label per point: the ``point_id`` column if the table has
-            one, otherwise the 1-based row number in the file.
+        labels: One label per point: ``point <id>`` if the table has a
+            ``point_id`` column, otherwise ``row <k>`` for the k-th data row.
     """
 
     x: FloatArray
@@ -79,22 +86,27 @@ def read_table(path: str | Path) -> Table:
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"table {p} does not exist")
-    with p.open(newline="", encoding="utf-8") as fh:
-        raw = [r for r in csv.reader(fh) if any(cell.strip() for cell in r)]
+    with p.open(newline="", encoding="utf-8-sig") as fh:
+        reader = csv.reader(fh)
+        raw = [(reader.line_num, r) for r in reader if any(cell.strip() for cell in r)]
     if not raw:
         raise DataError(f"{p}: the file is empty (expected a header row)")
-    header = tuple(c.strip() for c in raw[0])
+    line0, first = raw[0]
+    header = tuple(c.strip() for c in first)
     for j, name in enumerate(header):
         if not name:
-            raise DataError(f"{p}: row 1, column {j + 1}: blank column name")
+            raise DataError(f"{p}: line {line0}, column {j + 1}: blank column name")
         if name in header[:j]:
-            raise DataError(f"{p}: row 1: column name {name!r} appears twice")
-    rows = []
-    for i, r in enumerate(raw[1:], start=2):
+            raise DataError(f"{p}: line {line0}: column name {name!r} appears twice")
+    for line, r in raw[1:]:
         if len(r) != len(header):
-            raise DataError(f"{p}: row {i} has {len(r)} cells but the header has {len(header)}")
-        rows.append(tuple(c.strip() for c in r))
-    return Table(path=p, columns=header, rows=tuple(rows))
+            raise DataError(f"{p}: line {line} has {len(r)} cells but the header has {len(header)}")
+    return Table(
+        path=p,
+        columns=header,
+        rows=tuple(tuple(c.strip() for c in r) for _, r in raw[1:]),
+        line_numbers=tuple(line for line, _ in raw[1:]),
+    )
 
 
 def numeric_column(table: Table, name: str) -> FloatArray:
@@ -123,7 +135,8 @@ def numeric_column(table: Table, name: str) -> FloatArray:
             v = math.nan
         if not math.isfinite(v):
             raise DataError(
-                f"{table.path}: row {i + 2}, column {name!r}: expected a finite number, "
+                f"{table.path}: line {table.line_numbers[i]}, column {name!r}: "
+                "expected a finite number, "
                 f"got {cell!r}"
             )
         values[i] = v
@@ -164,9 +177,9 @@ def xy_from_table(table: Table, x_names: Sequence[str], y_name: str) -> XY:
             )
     if "point_id" in table.columns:
         j = table.columns.index("point_id")
-        labels = tuple(row[j] for row in table.rows)
+        labels = tuple(f"point {row[j]}" for row in table.rows)
     else:
-        labels = tuple(str(i + 2) for i in range(table.n_rows))
+        labels = tuple(f"row {i + 1}" for i in range(table.n_rows))
     x.setflags(write=False)
     y.setflags(write=False)
     return XY(x=x, y=y, x_names=tuple(x_names), y_name=y_name, labels=labels)
