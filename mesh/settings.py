@@ -17,20 +17,17 @@ class MeshSettings:
         slave_ratio: Slave contact surfaces get ``contact_size_mm / slave_ratio`` (≥ 1:
             the slave side is the finer one, as in the paper).
         refinement: Refinement level; each level halves every size.
-        layers_per_mm: Element layers per mm through the thickness of swept parts at level 0.
     """
 
     size_mm: float = 3.0
-    contact_size_mm: float = 0.8
+    contact_size_mm: float = 1.2
     slave_ratio: float = 1.5
     refinement: int = 0
-    layers_per_mm: float = 0.5
 
     def __post_init__(self) -> None:
         check_range("size_mm", self.size_mm, 0.05, 50.0)
         check_range("contact_size_mm", self.contact_size_mm, 0.01, 20.0)
         check_range("slave_ratio", self.slave_ratio, 1.0, 8.0)
-        check_range("layers_per_mm", self.layers_per_mm, 0.05, 20.0)
         if not isinstance(self.refinement, int) or not 0 <= self.refinement <= 4:
             raise ParameterError(f"refinement must be an integer in [0, 4], got {self.refinement!r}")
         if self.contact_size_mm > self.size_mm:

@@ -1,0 +1,297 @@
+"""The general hinge: tang (single lug), clevis (double lug) and a steel pin.
+
+Geometry (mm), in the frame of ``cad.model``: the pin axis is z through the origin;
+the tang reaches from its fixed end at x = −tang_length_mm to its rounded end around
+the hole; the clevis arms reach from their rounded ends to the clevis base, whose far
+face at x = clevis_length_mm + clevis_base_mm is the load face. Seen along z::
+
+      tang (z in [-t/2, t/2])           clevis arms (|z| in [t/2+g, t/2+g+a]) and base
+   ┌─────────────────────╮            ╭─────────────────────────┬────────┐
+   │ fixed            (  o  )  ==== (  o  )                     │  base  │ load
+   └─────────────────────╯            ╰─────────────────────────┴────────┘
+  x=-L_t                 0            0                        L_c     L_c+b
+
+Default dimensions are those of a small precision deployable-boom hinge: an 8 mm
+steel pin (the common M8-class size, and the 4 mm radius used as an example in the
+project brief), lugs 20 mm wide (edge distance e/D = 1.25, above the e/D ≥ 1 usual
+for pin-loaded lugs carrying well below their bearing strength: at 500 N the mean
+bearing stress in the tang is 500/(8·8) ≈ 8 MPa), an 8 mm tang between two 5 mm
+clevis arms so both shear planes carry half the load, and 0.2 mm axial running gaps.
+The paper does not give its hinge's dimensions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import build123d as bd
+
+from cad.errors import GeometryError, check_range
+from cad.materials import ALUMINIUM, STEEL_45, Material
+from cad.model import FaceRole, HingeModel, NamedFace, Part, PairKind, Slab, SurfacePair, Sweep
+from cad.surfaces import Cylinder, Plane
+
+MIN_WALL_MM = 1.0
+"""Smallest lug wall (outer radius minus hole radius) accepted [mm]."""
+
+MAX_OVERHANG_MM = 10.0
+"""Longest pin overhang beyond a clevis arm that something still holds [mm]."""
+
+SURFACE_TOL_MM = 1e-3
+"""Half-width of the boxes that pick named faces along z [mm]."""
+
+
+@dataclass(frozen=True)
+class GeneralHingeParams:
+    """Parameters of the general hinge (mm).
+
+    Attributes:
+        pin_radius_mm: Pin radius.
+        clearance_mm: Radial clearance Δr between pin and holes (0 = line-to-line fit).
+        lug_width_mm: Width of tang and clevis arms (y), also the diameter of their rounded ends.
+        tang_thickness_mm: Tang thickness along the pin axis.
+        clevis_arm_thickness_mm: Thickness of each clevis arm along the pin axis.
+        clevis_gap_mm: Axial gap between the tang and each clevis arm.
+        tang_length_mm: Distance from the hole centre to the tang's fixed end.
+        clevis_length_mm: Distance from the hole centre to the clevis base.
+        clevis_base_mm: Length of the clevis base along x (it ends at the load face).
+        pin_length_mm: Pin length; None means the span of the clevis plus 1 mm each side.
+        lug_material: Material of tang and clevis.
+        pin_material: Material of the pin.
+    """
+
+    pin_radius_mm: float = 4.0
+    clearance_mm: float = 0.0
+    lug_width_mm: float = 20.0
+    tang_thickness_mm: float = 8.0
+    clevis_arm_thickness_mm: float = 5.0
+    clevis_gap_mm: float = 0.2
+    tang_length_mm: float = 25.0
+    clevis_length_mm: float = 25.0
+    clevis_base_mm: float = 8.0
+    pin_length_mm: float | None = None
+    lug_material: Material = field(default=ALUMINIUM)
+    pin_material: Material = field(default=STEEL_45)
+
+    def __post_init__(self) -> None:
+        check_range("pin_radius_mm", self.pin_radius_mm, 0.5, 50.0)
+        check_range("lug_width_mm", self.lug_width_mm, 2 * (self.pin_radius_mm + MIN_WALL_MM), 500.0)
+        max_clearance = self.lug_width_mm / 2 - self.pin_radius_mm - MIN_WALL_MM
+        check_range("clearance_mm", self.clearance_mm, 0.0, max_clearance)
+        check_range("tang_thickness_mm", self.tang_thickness_mm, 0.5, 200.0)
+        check_range("clevis_arm_thickness_mm", self.clevis_arm_thickness_mm, 0.5, 200.0)
+        check_range("clevis_gap_mm", self.clevis_gap_mm, 0.01, 20.0)
+        check_range("tang_length_mm", self.tang_length_mm, self.lug_width_mm / 2 + 1.0, 1000.0)
+        check_range("clevis_length_mm", self.clevis_length_mm, self.lug_width_mm / 2 + 1.0, 1000.0)
+        check_range("clevis_base_mm", self.clevis_base_mm, 1.0, 200.0)
+        if self.pin_length_mm is not None:
+            check_range("pin_length_mm", self.pin_length_mm, self.span_mm, self.span_mm + 2 * MAX_OVERHANG_MM)
+
+    @property
+    def hole_radius_mm(self) -> float:
+        """Radius of the holes in tang and clevis [mm]."""
+        return self.pin_radius_mm + self.clearance_mm
+
+    @property
+    def span_mm(self) -> float:
+        """Overall thickness of the clevis along the pin axis [mm]."""
+        return self.tang_thickness_mm + 2 * (self.clevis_gap_mm + self.clevis_arm_thickness_mm)
+
+    @property
+    def pin_length(self) -> float:
+        """Pin length actually used [mm]."""
+        return self.span_mm + 2.0 if self.pin_length_mm is None else self.pin_length_mm
+
+    @property
+    def ring_radius_mm(self) -> float:
+        """Outer radius of the ring around each hole that the mesher grades toward the hole [mm]."""
+        return self.hole_radius_mm + 0.5 * (self.lug_width_mm / 2 - self.hole_radius_mm)
+
+    def z_levels(self) -> dict[str, tuple[float, float]]:
+        """Return the z-range of tang, each clevis arm and the pin [mm]."""
+        t2 = self.tang_thickness_mm / 2
+        inner = t2 + self.clevis_gap_mm
+        outer = inner + self.clevis_arm_thickness_mm
+        half_pin = self.pin_length / 2
+        return {
+            "tang": (-t2, t2),
+            "clevis_1": (-outer, -inner),
+            "clevis_2": (inner, outer),
+            "pin": (-half_pin, half_pin),
+        }
+
+
+def _polar(r: float, angle_deg: float) -> bd.Vector:
+    a = math.radians(angle_deg)
+    return bd.Vector(r * math.cos(a), r * math.sin(a))
+
+
+def _quarter_annulus(r_in: float, r_out: float, start_deg: float) -> bd.Face:
+    """Return the face between radii r_in and r_out over 90° from ``start_deg``."""
+    end = start_deg + 90.0
+    edges = [
+        bd.CenterArc((0, 0), r_in, start_deg, 90.0),
+        bd.Line(_polar(r_in, end), _polar(r_out, end)),
+        bd.CenterArc((0, 0), r_out, start_deg, 90.0),
+        bd.Line(_polar(r_in, start_deg), _polar(r_out, start_deg)),
+    ]
+    return _single_face(bd.make_face(edges), "quarter annulus")
+
+
+def _ring_faces(r_in: float, r_out: float) -> tuple[bd.Face, ...]:
+    """Four quarter annuli split at 0°, 90°, 180°, 270°.
+
+    The splits must include 0°: the kernel's full circle bounding the lug outline has
+    its seam vertex there, which would otherwise cut one quarter's arc in two and
+    leave that patch five-sided (no longer structured).
+    """
+    return tuple(_quarter_annulus(r_in, r_out, a) for a in (0.0, 90.0, 180.0, 270.0))
+
+
+def _disk_faces(radius: float) -> tuple[bd.Face, ...]:
+    """An O-grid disk: a centre square and four patches reaching the circle."""
+    rho = 0.5 * radius  # half-diagonal of the centre square
+    corners = [_polar(rho, a) for a in (-45.0, 45.0, 135.0, 225.0)]
+    square = bd.make_face([bd.Line(corners[i], corners[(i + 1) % 4]) for i in range(4)])
+    faces = [_single_face(square, "pin core")]
+    for i, a in enumerate((-45.0, 45.0, 135.0, 225.0)):
+        edges = [
+            bd.CenterArc((0, 0), radius, a, 90.0),
+            bd.Line(_polar(radius, a + 90.0), corners[(i + 1) % 4]),
+            bd.Line(corners[(i + 1) % 4], corners[i]),
+            bd.Line(corners[i], _polar(radius, a)),
+        ]
+        faces.append(_single_face(bd.make_face(edges), "pin patch"))
+    return tuple(faces)
+
+
+def _lug_profile(p: GeneralHingeParams, toward: float, length: float) -> tuple[bd.Face, ...]:
+    """Return the faces of a lug whose body extends from the hole toward ±x.
+
+    Four ring quarters around the hole, two quarter annuli forming the rounded end
+    (splitting there keeps the tangency points of the outline off any element's
+    side), and the straight body.
+    """
+    half_w = p.lug_width_mm / 2
+    align_x = bd.Align.MIN if toward > 0 else bd.Align.MAX
+    body = bd.Rectangle(length, p.lug_width_mm, align=(align_x, bd.Align.CENTER)) - bd.Circle(p.ring_radius_mm)
+    end_starts = (90.0, 180.0) if toward > 0 else (270.0, 0.0)
+    end = tuple(_quarter_annulus(p.ring_radius_mm, half_w, a) for a in end_starts)
+    return (*_ring_faces(p.hole_radius_mm, p.ring_radius_mm), *end, _single_face(body, "lug body"))
+
+
+def _single_face(sketch: bd.Sketch, what: str) -> bd.Face:
+    faces = sketch.faces()
+    if len(faces) != 1:
+        raise GeometryError(f"{what} should be one face, the kernel made {len(faces)}")
+    return faces[0]
+
+
+def _extrude(faces: tuple[bd.Face, ...], z0: float, z1: float) -> bd.Part:
+    return bd.Pos(0, 0, z0) * bd.extrude(bd.Sketch() + list(faces), amount=z1 - z0)
+
+
+def _checked(solid: bd.Part, name: str) -> bd.Solid:
+    solids = solid.solids()
+    if len(solids) != 1 or not solids[0].is_valid:
+        raise GeometryError(f"{name}: the kernel made {len(solids)} solid(s), valid={solid.is_valid}")
+    return solids[0]
+
+
+def make_general_hinge(p: GeneralHingeParams) -> HingeModel:
+    """Build the general hinge's solids, named faces and contact pairs.
+
+    Args:
+        p: Validated parameters.
+
+    Returns:
+        A HingeModel of kind ``"general"`` with parts tang, clevis, pin.
+
+    Raises:
+        GeometryError: If the kernel produces an invalid solid.
+    """
+    z = p.z_levels()
+    tang_faces = _lug_profile(p, -1.0, p.tang_length_mm)
+    arm_lug = _lug_profile(p, +1.0, p.clevis_length_mm)
+    base = bd.Pos(p.clevis_length_mm, 0) * bd.Rectangle(
+        p.clevis_base_mm, p.lug_width_mm, align=(bd.Align.MIN, bd.Align.CENTER)
+    )
+    base_face = _single_face(base, "clevis base")
+    pin_faces = _disk_faces(p.pin_radius_mm)
+
+    tang = _checked(_extrude(tang_faces, *z["tang"]), "tang")
+    arm_faces = (*arm_lug, base_face)
+    base_index = len(arm_faces) - 1
+    clevis_body = (
+        _extrude(arm_faces, *z["clevis_1"])
+        + _extrude((base_face,), z["clevis_1"][1], z["clevis_2"][0])
+        + _extrude(arm_faces, *z["clevis_2"])
+    )
+    clevis = _checked(clevis_body, "clevis")
+    pin = _checked(_extrude(pin_faces, *z["pin"]), "pin")
+    everything = tuple(range(len(arm_faces)))
+
+    pin_levels = sorted({*z["pin"], *z["clevis_1"], *z["clevis_2"], *z["tang"]})
+    parts = (
+        Part("tang", tang, p.lug_material, Sweep(tang_faces, (Slab(*z["tang"], tuple(range(len(tang_faces)))),))),
+        Part(
+            "clevis",
+            clevis,
+            p.lug_material,
+            Sweep(
+                arm_faces,
+                (
+                    Slab(*z["clevis_1"], everything),
+                    Slab(z["clevis_1"][1], z["clevis_2"][0], (base_index,)),
+                    Slab(*z["clevis_2"], everything),
+                ),
+            ),
+        ),
+        Part(
+            "pin",
+            pin,
+            p.pin_material,
+            Sweep(
+                pin_faces,
+                tuple(Slab(a, b, tuple(range(5))) for a, b in zip(pin_levels, pin_levels[1:], strict=False)),
+            ),
+        ),
+    )
+    return HingeModel("general", p, parts, _named_faces(p), _pairs())
+
+
+def _named_faces(p: GeneralHingeParams) -> dict[str, NamedFace]:
+    z = p.z_levels()
+    pin_surface = Cylinder((0, 0, 0), (0, 0, 1), p.pin_radius_mm, material_inside=True)
+    hole = Cylinder((0, 0, 0), (0, 0, 1), p.hole_radius_mm, material_inside=False)
+    tol = SURFACE_TOL_MM
+    far = 1e6
+
+    def zbox(rng: tuple[float, float]) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        return ((-far, -far, rng[0] - tol), (far, far, rng[1] + tol))
+
+    faces = [
+        NamedFace("tang_fixed", "tang", FaceRole.FIXED, Plane((-p.tang_length_mm, 0, 0), (-1, 0, 0))),
+        NamedFace(
+            "clevis_load",
+            "clevis",
+            FaceRole.LOAD,
+            Plane((p.clevis_length_mm + p.clevis_base_mm, 0, 0), (1, 0, 0)),
+        ),
+        NamedFace("tang_hole", "tang", FaceRole.CONTACT_MASTER, hole, zbox(z["tang"])),
+        NamedFace("clevis_hole_1", "clevis", FaceRole.CONTACT_MASTER, hole, zbox(z["clevis_1"])),
+        NamedFace("clevis_hole_2", "clevis", FaceRole.CONTACT_MASTER, hole, zbox(z["clevis_2"])),
+        NamedFace("pin_tang", "pin", FaceRole.CONTACT_SLAVE, pin_surface, zbox(z["tang"])),
+        NamedFace("pin_clevis_1", "pin", FaceRole.CONTACT_SLAVE, pin_surface, zbox(z["clevis_1"])),
+        NamedFace("pin_clevis_2", "pin", FaceRole.CONTACT_SLAVE, pin_surface, zbox(z["clevis_2"])),
+    ]
+    return {f.name: f for f in faces}
+
+
+def _pairs() -> tuple[SurfacePair, ...]:
+    return (
+        SurfacePair("pin-tang", "pin_tang", "tang_hole", PairKind.CONTACT),
+        SurfacePair("pin-clevis_1", "pin_clevis_1", "clevis_hole_1", PairKind.CONTACT),
+        SurfacePair("pin-clevis_2", "pin_clevis_2", "clevis_hole_2", PairKind.CONTACT),
+    )
