@@ -1,0 +1,43 @@
+"""``hingelab trace DB POINT``: walk one sample point's chain back to its files.
+
+Prints design parameters → STEP file → mesh (and its picture) → solver settings
+and convergence → loop file (and its picture) → results, checking that every
+recorded file still exists with the content it had when it was recorded. A
+missing or changed file is reported, never opened; the exit status is then 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from rsm import trace
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``trace`` subcommand."""
+    p = subparsers.add_parser(
+        "trace",
+        help="show how one sample point was produced (files, mesh, solver, loop, results)",
+        description=__doc__.splitlines()[0] if __doc__ else None,
+    )
+    p.add_argument("db", type=Path, help="trace database (trace.sqlite next to the study results)")
+    p.add_argument("point", type=int, help="point id (as in 'point 17' of an rsm fit report)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of text")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the chain; return 1 if any of its files is missing or changed."""
+    t = trace.walk(args.db, args.point)
+    if args.json:
+        print(json.dumps(trace.trace_as_dict(t), indent=2, ensure_ascii=False))
+    else:
+        print(trace.format_trace(t))
+    bad = [a for a in t.artifacts if a.state is not trace.ArtifactState.OK]
+    for a in bad:
+        print(f"hingelab trace: {a.message}", file=sys.stderr)
+    return 1 if bad else 0
