@@ -57,16 +57,15 @@ Example:
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
-import scipy.linalg as sla
 
 from cad.errors import ConvergenceError, ParameterError, check_range
-from fe.contact_law import ContactStatus, CoulombStep, coulomb_step, slip_frame
+from fe.contact_law import ContactStatus
+from fe.contact_newton import Iterate, Problem, Step, evaluate, newton_step
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -201,187 +200,13 @@ class IncrementResult:
     rescues: int
 
 
-class _Problem(NamedTuple):
-    W: FloatArray  # (3m, 3m)
-    w_free: FloatArray  # (m, 3)
-    G: FloatArray  # (3m, k), k may be 0
-    e: FloatArray  # (k,)
-    w_t_prev: FloatArray  # (m, 2)
-    mu: float
-
-
-class _Iterate(NamedTuple):
-    p: FloatArray  # (m, 3)
-    alpha: FloatArray  # (k,)
-    w: FloatArray  # (m, 3)
-    g: FloatArray  # (m, 3) = (w_n, Δw_t)
-    law: CoulombStep
-    C: FloatArray  # (m, 3) complementarity residual [N]
-    eq: FloatArray  # (k,) equilibrium residual [N]
-    merit: float
-    rho: float
-
-
-def _evaluate(prob: _Problem, p: FloatArray, alpha: FloatArray, r: FloatArray) -> _Iterate:
-    Wp = (prob.W @ p.ravel()).reshape(-1, 3)
-    Ga = (prob.G @ alpha).reshape(-1, 3)
-    w = Wp + Ga + prob.w_free
-    g = w.copy()
-    g[:, 1:] -= prob.w_t_prev
-    law = coulomb_step(g, p, prob.mu, r)
-    C = p - law.traction
-    eq = prob.G.T @ p.ravel() - prob.e
-    r_bar = float(np.mean(r))
-    Cr = C / r[:, None]
-    merit = 0.5 * float(np.sum(Cr**2)) + 0.5 * float(np.sum((eq / r_bar) ** 2))
-    drift = prob.w_free.copy()
-    drift[:, 1:] -= prob.w_t_prev
-    d_ref = max(_amax(Wp), _amax(Ga), _amax(drift))
-    f_ref = max(_amax(prob.e), _amax(np.abs(prob.G).T @ np.abs(p.ravel())))
-    rho = max(_ratio(_amax(Cr), d_ref), _ratio(_amax(eq), f_ref))
-    return _Iterate(p, alpha, w, g, law, C, eq, merit, rho)
-
-
-def _amax(a: FloatArray) -> float:
-    return float(np.max(np.abs(a))) if a.size else 0.0
-
-
-def _ratio(num: float, ref: float) -> float:
-    return 0.0 if num == 0.0 else num / max(ref, np.finfo(float).tiny)
-
-
-class _Step(NamedTuple):
-    dp: FloatArray  # (m, 3)
-    alpha_new: FloatArray  # (k,)
-
-
-def _newton_step(
-    prob: _Problem, it: _Iterate, r: FloatArray, cut: float, *, close_open: bool = False
-) -> _Step | None:
-    """Solve the reduced generalised-Newton system; None if it is singular.
-
-    With ``close_open`` the open points are treated as closed and frictionless (a
-    bilateral predictor that lets a floating body that touches nothing find contact).
-
-    Unknowns per closed point (slots n, t1, t2): stick (dp_n, dp_t1, dp_t2); slip
-    (dp_n, b) with ``dp_t = (μ(p_n + dp_n) - p_t·u) u + b v``; frictionless (dp_n) with
-    ``dp_t = -p_t``. Rows (divided by r): ``dw_n = -w_n``; stick ``dw_t = -Δw_t``; slip
-    ``(1-κ)/r b + κ v·dw_t = -C_t·v/r``. Open points get ``dp = -p``.
-    """
-    status = it.law.status
-    forced = status == ContactStatus.OPEN if close_open else np.zeros(len(status), dtype=bool)
-    closed = np.flatnonzero((status != ContactStatus.OPEN) | forced)
-    u, kappa = slip_frame(it.g, it.p, prob.mu, r)
-    is_slip = (status[closed] == ContactStatus.SLIP) & (prob.mu > 0.0)
-    is_free = ((status[closed] == ContactStatus.SLIP) & (prob.mu == 0.0)) | forced[closed]
-    u_c, kap_c = u[closed], kappa[closed]
-    v_c = np.stack([-u_c[:, 1], u_c[:, 0]], axis=1)  # (c, 2), u rotated by +90°
-
-    s = -it.p.copy()  # shift: dp = T dq + s
-    s[closed] = 0.0
-    C_c = it.C[closed]
-    sl = closed[is_slip]
-    a0 = prob.mu * it.p[sl, 0] - np.sum(it.p[sl, 1:] * u_c[is_slip], axis=1)
-    s[sl, 1:] = a0[:, None] * u_c[is_slip]
-    s[closed[is_free], 1:] = -it.p[closed[is_free], 1:]
-
-    # Target of the rows (before moving the shift to the right-hand side).
-    target = -it.g[closed].copy()  # (c, 3): -w_n, -Δw_t
-    target[is_slip, 1] = -np.sum(C_c[is_slip, 1:] * v_c[is_slip], axis=1) / r[sl]
-    Ws = (prob.W @ s.ravel()).reshape(-1, 3)[closed]  # (c, 3)
-    idx = (3 * closed[:, None] + np.arange(3)).ravel()
-    J = prob.W[np.ix_(idx, idx)]  # (3c, 3c) copy
-    Gc = prob.G[idx].reshape(len(closed), 3, prob.G.shape[1])  # (c, 3, k)
-    jn, j1, j2 = (3 * np.flatnonzero(is_slip) + a for a in range(3))
-    mu = prob.mu
-    # Column transform T (slip points): n-col += μ u·t-cols, t1-col := v·t-cols.
-    ux, uy = u_c[is_slip, 0], u_c[is_slip, 1]
-    vx, vy = v_c[is_slip, 0], v_c[is_slip, 1]
-    col1, col2 = J[:, j1], J[:, j2]
-    J[:, jn] += mu * (col1 * ux + col2 * uy)
-    J[:, j1] = col1 * vx + col2 * vy
-    Gcol = Gc.copy()  # columns of Gᵀ T
-    g1, g2 = Gc[is_slip, 1], Gc[is_slip, 2]
-    Gcol[is_slip, 0] += mu * (g1 * ux[:, None] + g2 * uy[:, None])
-    Gcol[is_slip, 1] = g1 * vx[:, None] + g2 * vy[:, None]
-    # Row transform R (slip points): t1-row := κ v·t-rows (+ diagonal (1-κ)/r).
-    ks = kap_c[is_slip]
-    row1, row2 = J[j1], J[j2]
-    J[j1] = ks[:, None] * (row1 * vx[:, None] + row2 * vy[:, None])
-    J[j1, j1] += (1.0 - ks) / r[sl]
-    Grow = Gc.copy()
-    Grow[is_slip, 1] = ks[:, None] * (g1 * vx[:, None] + g2 * vy[:, None])
-    rhs = target.copy()
-    rhs[:, 0] -= Ws[:, 0]
-    rhs[~is_slip, 1:] -= Ws[~is_slip, 1:]
-    rhs[is_slip, 1] -= ks * (Ws[is_slip, 1] * vx + Ws[is_slip, 2] * vy)
-
-    keep = np.ones((len(closed), 3), dtype=bool)
-    keep[is_slip, 2] = False
-    keep[is_free, 1:] = False
-    kf = keep.ravel()
-    if not kf.all():
-        J = J[np.ix_(kf, kf)]
-    Jalpha = Grow.reshape(3 * len(closed), prob.G.shape[1])[kf]  # (n_q, k)
-    H = Gcol.reshape(3 * len(closed), prob.G.shape[1])[kf].T  # (k, n_q)
-    b = rhs.ravel()[kf] + Jalpha @ it.alpha
-    h = prob.e - prob.G.T @ (it.p + s).ravel()
-
-    dq, alpha_new = _solve_bordered(J, Jalpha, H, b, h, cut)
-    if dq is None:
-        return None
-    full = np.zeros(3 * len(closed))
-    full[kf] = dq
-    dqc = full.reshape(-1, 3)
-    dp = s
-    dp[closed, 0] += dqc[:, 0]
-    dp[closed[~is_slip & ~is_free], 1:] += dqc[~is_slip & ~is_free, 1:]
-    dp[sl, 1:] += mu * dqc[is_slip, 0, None] * u_c[is_slip] + dqc[is_slip, 1, None] * v_c[is_slip]
-    return _Step(dp, alpha_new)
-
-
-def _solve_bordered(
-    J: FloatArray,
-    Jalpha: FloatArray,
-    H: FloatArray,
-    b: FloatArray,
-    h: FloatArray,
-    cut: float,
-) -> tuple[FloatArray | None, FloatArray]:
-    """Solve ``J x + Jα a = b, H x = h`` with min-norm ``a``; ``(None, ·)`` if J singular.
-
-    Singular values of the k×k Schur complement ``S = H J⁻¹ Jα`` below ``cut`` are
-    treated as zero (undetermined rigid directions get no component of ``a``).
-    """
-    k = Jalpha.shape[1]
-    if J.shape[0] == 0:
-        return np.zeros(0), np.zeros(k)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", sla.LinAlgWarning)
-        try:
-            lu = sla.lu_factor(J, overwrite_a=True, check_finite=False)
-        except sla.LinAlgWarning:
-            return None, np.zeros(k)
-    diag = np.abs(np.diag(lu[0]))
-    if not np.all(np.isfinite(diag)) or diag.min() <= 1e3 * np.finfo(float).eps * diag.max():
-        return None, np.zeros(k)
-    if k == 0:
-        return sla.lu_solve(lu, b, check_finite=False), np.zeros(0)
-    Y = sla.lu_solve(lu, np.column_stack([b, Jalpha]), check_finite=False)
-    U, sv, Vt = np.linalg.svd(H @ Y[:, 1:])  # Schur complement S, (k, k)
-    good = sv > max(cut, float(sv[0]) * np.finfo(float).eps * k)
-    coef = (U[:, good].T @ (H @ Y[:, 0] - h)) / sv[good]
-    a = Vt[good].T @ coef
-    return Y[:, 0] - Y[:, 1:] @ a, a
-
-
 def _validate(
     W: FloatArray,
     w_free: FloatArray,
     state_prev: ContactState,
     G: FloatArray | None,
     e: FloatArray | None,
-) -> _Problem:
+) -> Problem:
     m = state_prev.p.shape[0]
     W = np.asarray(W, dtype=np.float64)
     if W.shape != (3 * m, 3 * m):
@@ -405,17 +230,17 @@ def _validate(
             f"G and e must have shapes {(3 * m, k)} and {(k,)} (k from state_prev.alpha), "
             f"got {G_arr.shape} and {e_arr.shape}"
         )
-    return _Problem(W, w_free, G_arr, e_arr, np.array(state_prev.w[:, 1:]), 0.0)
+    return Problem(W, w_free, G_arr, e_arr, np.array(state_prev.w[:, 1:]), 0.0)
 
 
 def _line_search(
-    prob: _Problem, it: _Iterate, step: _Step, r: FloatArray, settings: ContactSettings
-) -> _Iterate | None:
+    prob: Problem, it: Iterate, step: Step, r: FloatArray, settings: ContactSettings
+) -> Iterate | None:
     """Armijo backtracking on the merit; None if no step >= min_step decreases it."""
     tau = 1.0
     while tau >= settings.min_step:
         alpha = it.alpha + tau * (step.alpha_new - it.alpha)
-        trial = _evaluate(prob, it.p + tau * step.dp, alpha, r)
+        trial = evaluate(prob, it.p + tau * step.dp, alpha, r)
         if trial.merit <= (1.0 - 2.0 * settings.armijo * tau) * it.merit:
             return trial
         tau *= 0.5
@@ -464,7 +289,7 @@ def solve_increment(
         p0, a0 = np.array(state_prev.p), np.array(state_prev.alpha)
     else:
         p0, a0 = np.zeros((m, 3)), np.zeros(k)
-    it = _evaluate(prob, p0, a0, r)
+    it = evaluate(prob, p0, a0, r)
     history, rescues = [it.rho], 0
     n_iter = 0
     while it.rho > settings.tol:
@@ -478,7 +303,7 @@ def solve_increment(
                 partial=partial,
             )
         n_iter += 1
-        step = _newton_step(prob, it, r, cut)
+        step = newton_step(prob, it, r, cut)
         new = None if step is None else _line_search(prob, it, step, r, settings)
         if new is None:
             rescued = _rescue(prob, it, r, r_base, cut, rescues)
@@ -490,12 +315,12 @@ def solve_increment(
 
 
 class _Rescued(NamedTuple):
-    iterate: _Iterate
+    iterate: Iterate
     law_r: FloatArray
 
 
 def _rescue(
-    prob: _Problem, it: _Iterate, r: FloatArray, r_base: FloatArray, cut: float, count: int
+    prob: Problem, it: Iterate, r: FloatArray, r_base: FloatArray, cut: float, count: int
 ) -> _Rescued:
     """Leave a stall: alternately a bilateral predictor (if points are open) and a new r.
 
@@ -505,17 +330,17 @@ def _rescue(
     keeps Newton from repeating a cycle.
     """
     if count % 2 == 0 and np.any(it.law.status == ContactStatus.OPEN):
-        step = _newton_step(prob, it, r, cut, close_open=True)
+        step = newton_step(prob, it, r, cut, close_open=True)
         if step is not None:
-            return _Rescued(_evaluate(prob, it.p + step.dp, step.alpha_new, r), r)
+            return _Rescued(evaluate(prob, it.p + step.dp, step.alpha_new, r), r)
     new_r = r_base * RESCUE_FACTORS[(count // 2) % len(RESCUE_FACTORS)]
-    return _Rescued(_evaluate(prob, it.p, it.alpha, new_r), new_r)
+    return _Rescued(evaluate(prob, it.p, it.alpha, new_r), new_r)
 
 
 def _result(
-    prob: _Problem,
+    prob: Problem,
     prev: ContactState,
-    it: _Iterate,
+    it: Iterate,
     n_iter: int,
     history: list[float],
     rescues: int,
@@ -586,7 +411,7 @@ def complementarity(
     m = p.shape[0]
     r = settings.r_scale / np.diagonal(prob.W).reshape(m, 3).mean(axis=1)
     a = np.zeros(k) if alpha is None else np.asarray(alpha, dtype=np.float64)
-    it = _evaluate(prob, np.asarray(p, dtype=np.float64), a, r)
+    it = evaluate(prob, np.asarray(p, dtype=np.float64), a, r)
     D = it.law.tangent  # (m, 3, 3)
     jac = np.zeros((3 * m, 3 * m))
     rows = np.arange(3 * m).reshape(m, 3)

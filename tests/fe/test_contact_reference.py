@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import nnls
 
-from fe import contact
+from fe import contact, contact_newton
 from fe.contact import (
     ContactSettings,
     ContactState,
@@ -140,8 +140,8 @@ def test_newton_step_equals_full_generalised_newton_direction():
     full = -np.linalg.solve(comp.jacobian, comp.residual.ravel())
     prob = contact._validate(W, w_free, prev, None, None)._replace(mu=settings.mu)
     r = settings.r_scale / np.diagonal(W).reshape(m, 3).mean(axis=1)
-    it = contact._evaluate(prob, p, np.zeros(0), r)
-    step = contact._newton_step(prob, it, r, 0.0)
+    it = contact_newton.evaluate(prob, p, np.zeros(0), r)
+    step = contact_newton.newton_step(prob, it, r, 0.0)
     assert step is not None
     np.testing.assert_allclose(step.dp.ravel(), full, atol=1e-10 * np.max(np.abs(full)))
     assert {int(s) for s in comp.status} == {0, 1, 2}
