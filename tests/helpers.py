@@ -70,7 +70,16 @@ def box_mesh(
             indexing="ij",
         )
     )
-    corners = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
+    corners = [
+        (0, 0, 0),
+        (1, 0, 0),
+        (1, 1, 0),
+        (0, 1, 0),
+        (0, 0, 1),
+        (1, 0, 1),
+        (1, 1, 1),
+        (0, 1, 1),
+    ]
     hexes = np.stack([nid(ei + a, ej + b, ek + c) for a, b, c in corners], axis=1)
 
     on_face = {

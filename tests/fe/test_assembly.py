@@ -131,7 +131,9 @@ def test_nodal_average_of_constant_and_orphan_node():
 def test_body_force_integrates_total_load():
     mesh = box_mesh(2.0, 1.0, 0.5, 3, 2, 2, distort=0.2)
     f = assemble_body_force(mesh, lambda x: np.tile([0.0, 0.0, -7.0], (len(x), 1)))
-    np.testing.assert_allclose(f.reshape(-1, 3).sum(axis=0), [0.0, 0.0, -7.0], rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(
+        f.reshape(-1, 3).sum(axis=0), [0.0, 0.0, -7.0], rtol=1e-13, atol=1e-13
+    )
     g = assemble_body_force(mesh, lambda x: np.stack([x[:, 0], 0 * x[:, 0], 0 * x[:, 0]], axis=1))
     assert g.reshape(-1, 3)[:, 0].sum() == pytest.approx(2.0 * 1.0 * 0.5 * 1.0, rel=1e-13)  # ∫x dV
 
@@ -169,7 +171,11 @@ def test_solve_dirichlet_does_not_mutate_inputs():
 
 @pytest.mark.parametrize(
     ("fixed", "match"),
-    [(np.array([0, 0, 1]), "repeats"), (np.array([-1]), "must lie in"), (np.array([10**6]), "must lie in")],
+    [
+        (np.array([0, 0, 1]), "repeats"),
+        (np.array([-1]), "must lie in"),
+        (np.array([10**6]), "must lie in"),
+    ],
     ids=["repeated", "negative", "too-large"],
 )
 def test_solve_dirichlet_rejects_bad_fixed_dofs(fixed, match):

@@ -59,7 +59,10 @@ def test_shape_gradients_match_central_differences():
     xi, h = _random_points(20), 1e-6
     fd = np.stack(
         [
-            (hex8_shape_functions(xi + h * np.eye(3)[j]) - hex8_shape_functions(xi - h * np.eye(3)[j]))
+            (
+                hex8_shape_functions(xi + h * np.eye(3)[j])
+                - hex8_shape_functions(xi - h * np.eye(3)[j])
+            )
             / (2 * h)
             for j in range(3)
         ],
@@ -75,7 +78,10 @@ def test_bubble_gradients_match_central_differences():
         return 1.0 - p**2  # (n, 3): P_k = 1 - ξ_k²
 
     fd = np.stack(
-        [(bubbles(xi + h * np.eye(3)[j]) - bubbles(xi - h * np.eye(3)[j])) / (2 * h) for j in range(3)],
+        [
+            (bubbles(xi + h * np.eye(3)[j]) - bubbles(xi - h * np.eye(3)[j])) / (2 * h)
+            for j in range(3)
+        ],
         axis=2,
     )
     np.testing.assert_allclose(bubble_gradients(xi), fd, atol=1e-9)
@@ -134,14 +140,20 @@ def test_constant_strain_gives_exact_stress_everywhere_on_distorted_element(kind
     voigt = sigma[[0, 1, 2, 1, 0, 0], [0, 1, 2, 2, 2, 1]]
     # At the Gauss points the internal modes would show up if they were excited.
     at_gauss = element_stress_at_points(coords, u_e, LAM, MU, kind, gauss_hex(2).points)
-    np.testing.assert_allclose(at_gauss, np.broadcast_to(voigt, at_gauss.shape), rtol=0, atol=RTOL * 300)
-    np.testing.assert_allclose(element_strain_stress(coords, u_e, LAM, MU, kind), np.tile(voigt, (3, 1)), atol=1e-9)
+    np.testing.assert_allclose(
+        at_gauss, np.broadcast_to(voigt, at_gauss.shape), rtol=0, atol=RTOL * 300
+    )
+    np.testing.assert_allclose(
+        element_strain_stress(coords, u_e, LAM, MU, kind), np.tile(voigt, (3, 1)), atol=1e-9
+    )
 
 
 def _pure_bending(coords, kappa):
     """Exact 3D pure-bending field (σxx = E κ z, all else 0) and its stress at points x."""
     x, y, z = coords[..., 0], coords[..., 1], coords[..., 2]
-    u = np.stack([kappa * x * z, -NU * kappa * y * z, -0.5 * kappa * (x**2 + NU * (z**2 - y**2))], axis=-1)
+    u = np.stack(
+        [kappa * x * z, -NU * kappa * y * z, -0.5 * kappa * (x**2 + NU * (z**2 - y**2))], axis=-1
+    )
     return u
 
 
@@ -192,7 +204,9 @@ def test_von_mises_of_simple_states():
 def test_inverted_element_names_element_and_value():
     coords = _distorted_elements(3)
     coords[1] = coords[1][[4, 5, 6, 7, 0, 1, 2, 3]]  # top and bottom swapped: inside out
-    with pytest.raises(MeshQualityError, match=r"element 1 has non-positive Jacobian determinant -"):
+    with pytest.raises(
+        MeshQualityError, match=r"element 1 has non-positive Jacobian determinant -"
+    ):
         element_stiffness(coords, LAM, MU)
 
 
