@@ -330,3 +330,13 @@ def test_inputs_are_not_mutated():
     for a, b in zip(before, (W, w2, G, e, state.p, state.w, state.alpha), strict=True):
         np.testing.assert_array_equal(a, b)
     assert not state.p.flags.writeable
+
+
+def test_rescue_path_converges_to_the_same_solution():
+    W, path = frictional_case()
+    ref = run_history(W, path, ContactSettings(mu=0.3))
+    # An Armijo constant this close to ½ rejects almost every step, forcing rescues.
+    hard = run_history(W, path, ContactSettings(mu=0.3, armijo=0.4999, min_step=0.99))
+    assert sum(r.rescues for r in hard) >= 2
+    for a, b in zip(ref, hard, strict=True):
+        np.testing.assert_allclose(b.state.p, a.state.p, atol=CMP * np.max(np.abs(a.state.p)))

@@ -192,6 +192,7 @@ def test_floating_frictionless_undetermined_tangential_directions_give_min_norm_
     np.testing.assert_allclose(res.state.p, only_normal.state.p, atol=CMP * 3.0)
     np.testing.assert_allclose(res.state.alpha[0], only_normal.state.alpha[0], rtol=CMP)
     np.testing.assert_array_equal(res.state.alpha[1:], 0.0)
+    assert res.rescues >= 1  # all open at the start: the bilateral predictor found contact
     assert 0 < res.n_open < m
     check_conditions(W, w_free, prev, res, 0.0, G=G, e=e)
 
