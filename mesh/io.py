@@ -1,0 +1,84 @@
+"""Mesh files: gmsh .msh and VTK .vtu (via meshio), with part and set labels.
+
+Both files hold the hexahedra (cell data ``part``: index into the part names) and
+every named facet set as quadrilaterals (cell data ``set``: index into the set
+names; −1 on hexahedra, and ``part`` −1 on quads). The .msh file (format 2.2) carries the
+names as physical groups (``gmsh:physical``), so gmsh and meshio read them back; the .vtu
+file carries them in its field data, so ParaView can threshold by part or set.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import meshio
+import numpy as np
+
+from cad.errors import MeshQualityError
+from mesh.hexmesh import HexMesh
+
+
+def _meshio_mesh(mesh: HexMesh) -> meshio.Mesh:
+    names = sorted(mesh.facet_sets)
+    quads = [mesh.facet_sets[n] for n in names]
+    n_q = [len(q) for q in quads]
+    cells = [("hexahedron", mesh.hexes)] + [("quad", q) for q in quads]
+    part = [mesh.elem_part.astype(np.int64)] + [np.full(n, -1, dtype=np.int64) for n in n_q]
+    set_id = [np.full(mesh.n_elem, -1, dtype=np.int64)] + [
+        np.full(n, i, dtype=np.int64) for i, n in enumerate(n_q)
+    ]
+    # Physical tags: parts 1..P, sets P+1..P+S (gmsh wants them positive and unique).
+    n_parts = len(mesh.part_names)
+    physical = [mesh.elem_part + 1] + [np.full(n, n_parts + 1 + i, dtype=np.int64) for i, n in enumerate(n_q)]
+    field_data = {p: np.array([i + 1, 3]) for i, p in enumerate(mesh.part_names)}
+    field_data |= {s: np.array([n_parts + 1 + i, 2]) for i, s in enumerate(names)}
+    return meshio.Mesh(
+        points=np.asarray(mesh.nodes),
+        cells=cells,
+        cell_data={
+            "part": part,
+            "set": set_id,
+            "gmsh:physical": physical,
+            "gmsh:geometrical": physical,
+        },
+        field_data=field_data,
+    )
+
+
+def write_msh(mesh: HexMesh, path: Path) -> Path:
+    """Write a gmsh .msh file (format 2.2, which meshio writes for mixed cell types).
+
+    Parts and sets are physical groups only: meshio cannot read back extra element data.
+    """
+    m = _meshio_mesh(mesh)
+    del m.cell_data["part"], m.cell_data["set"]
+    meshio.write(path, m, file_format="gmsh22", binary=False)
+    return path
+
+
+def write_vtu(mesh: HexMesh, path: Path) -> Path:
+    """Write a .vtu file ParaView opens: hexahedra and set quads with ``part``/``set`` labels."""
+    m = _meshio_mesh(mesh)
+    del m.cell_data["gmsh:physical"], m.cell_data["gmsh:geometrical"]
+    m.field_data = {}
+    meshio.write(path, m, file_format="vtu", binary=True)
+    return path
+
+
+def read_msh_summary(path: Path) -> dict[str, object]:
+    """Read a .msh file back; return nodes, hexes and physical-group name → cell count.
+
+    Raises:
+        MeshQualityError: If the file has no hexahedra.
+    """
+    m = meshio.read(path)
+    hexes = np.concatenate([c.data for c in m.cells if c.type == "hexahedron"]) if m.cells else np.empty((0, 8))
+    if len(hexes) == 0:
+        raise MeshQualityError(f"{path} holds no hexahedra")
+    tag_name = {int(v[0]): k for k, v in m.field_data.items()}
+    counts: dict[str, int] = {}
+    for tags in m.cell_data["gmsh:physical"]:
+        for t, c in zip(*np.unique(tags, return_counts=True), strict=True):
+            name = tag_name.get(int(t), str(t))
+            counts[name] = counts.get(name, 0) + int(c)
+    return {"nodes": m.points, "hexes": hexes, "groups": counts}

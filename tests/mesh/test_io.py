@@ -1,0 +1,52 @@
+"""Mesh files: .msh and .vtu round trips keep nodes, hexes, parts and set names."""
+
+from __future__ import annotations
+
+import meshio
+import numpy as np
+import pytest
+
+from cad.general import GeneralHingeParams, make_general_hinge
+from mesh.io import read_msh_summary, write_msh, write_vtu
+
+pytest.importorskip("gmsh")
+from mesh.build import mesh_hinge  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def mesh():
+    return mesh_hinge(make_general_hinge(GeneralHingeParams()))[0]
+
+
+def test_msh_round_trip(mesh, tmp_path):
+    path = write_msh(mesh, tmp_path / "m.msh")
+    back = read_msh_summary(path)
+    assert np.allclose(back["nodes"], mesh.nodes)
+    assert np.array_equal(back["hexes"], mesh.hexes)
+    for i, part in enumerate(mesh.part_names):
+        assert back["groups"][part] == int((mesh.elem_part == i).sum())
+    for name, facets in mesh.facet_sets.items():
+        assert back["groups"][name] == len(facets)
+
+
+def test_msh_opens_in_gmsh_with_names(mesh, tmp_path):
+    gmsh = pytest.importorskip("gmsh")
+    path = write_msh(mesh, tmp_path / "m.msh")
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(str(path))
+        names = {gmsh.model.getPhysicalName(d, t) for d, t in gmsh.model.getPhysicalGroups()}
+    finally:
+        gmsh.finalize()
+    assert names == set(mesh.part_names) | set(mesh.facet_sets)
+
+
+def test_vtu_holds_parts_and_sets(mesh, tmp_path):
+    m = meshio.read(write_vtu(mesh, tmp_path / "m.vtu"))
+    hexes = [c for c in m.cells if c.type == "hexahedron"][0].data
+    assert np.array_equal(hexes, mesh.hexes)
+    part = np.concatenate(m.cell_data["part"])
+    assert np.array_equal(np.bincount(part[part >= 0]), np.bincount(mesh.elem_part))
+    n_quads = sum(len(c.data) for c in m.cells if c.type == "quad")
+    assert n_quads == sum(len(f) for f in mesh.facet_sets.values())
