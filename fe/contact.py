@@ -27,10 +27,14 @@ slipping point's tangential force along the slip direction is eliminated
 (``p_t·u = μ p_n``), so each step factorises a dense system of size
 ``3 n_stick + 2 n_slip + n_frictionless`` (``+ k`` rigid amplitudes via a k×k Schur
 complement solved by least squares with ``rcond``, which gives the minimum-norm ``α``).
-Globalisation: Armijo backtracking on the merit ``φ = ½|C/r|² + ½|(Gᵀp - e)/r̄|²``;
-if no descent step exists (or the step matrix is singular) ``r`` is rescaled by the next
-factor of ``RESCUE_FACTORS``, which changes the path but not the solution, so the
-iteration cannot cycle indefinitely; it stops at ``max_iter``.
+Globalisation: Armijo backtracking on the merit ``φ = ½|C/r|² + ½|(Gᵀp - e)/r̄|²``.
+If no step ``>= min_step`` decreases ``φ`` (or the step matrix is singular) a rescue is
+taken, alternately (a) if some points are open, a full "bilateral predictor" step with
+the open points closed and frictionless (how a floating body that touches nothing finds
+contact), and (b) rescaling ``r`` by the next factor of ``RESCUE_FACTORS``, which changes
+the merit and the active-set path but not the solution. The line search keeps ``φ``
+monotone between rescues, so the plain Newton cycle between active sets cannot occur;
+the loop stops at ``max_iter`` with a ConvergenceError.
 
 Convergence: the scaled residual ``ρ = max(|C/r|_∞ / d_ref, |Gᵀp - e|_∞ / f_ref)`` must
 drop to ``tol``, where ``d_ref = max(|W p|_∞, |G α|_∞, |w_free - (0, w_t_prev)|_∞)`` [mm]
@@ -42,9 +46,11 @@ Energy: for increment ``p_prev → p`` the consistent (trapezoidal) works are
 ``friction_work_i = -½ (p_t,prev + p_t)·Δw_t`` and
 ``normal_work_i = -½ (p_n,prev + p_n) Δw_n``. With ``K u = f + Cᵀ p`` and the
 trapezoidal external work ``½ (f_prev + f)·Δu`` they satisfy exactly
-``W_ext = ΔE_elastic + Σ (friction_work + normal_work)``; over a closed cycle the
-summed friction work therefore equals the loop area. ``dissipation_i = -p_t·Δw_t >= 0``
-is the backward-Euler value (equal to the above in the limit of small increments).
+``W_ext = ΔE_elastic + Σ (friction_work + normal_work)``, so over a cycle that closes
+(``ΔE = 0``) the summed works equal the loop area. ``normal_work`` is zero for points that
+stay closed or stay open and is a first-order discretisation term at increments where a
+point opens or closes. ``dissipation_i = -p_t·Δw_t >= 0`` is the backward-Euler value
+(it tends to ``friction_work`` as the increments shrink).
 
 Example:
     >>> import numpy as np

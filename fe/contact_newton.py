@@ -230,15 +230,16 @@ def _solve_bordered(
     with warnings.catch_warnings():
         warnings.simplefilter("error", sla.LinAlgWarning)
         try:
-            lu = sla.lu_factor(J, overwrite_a=True, check_finite=False)
+            # Factor Jᵀ: it is Fortran-ordered, so LAPACK works in place (no n_q² copy).
+            lu = sla.lu_factor(J.T, overwrite_a=True, check_finite=False)
         except sla.LinAlgWarning:
             return None, np.zeros(k)
     diag = np.abs(np.diag(lu[0]))
     if not np.all(np.isfinite(diag)) or diag.min() <= 1e3 * np.finfo(float).eps * diag.max():
         return None, np.zeros(k)
     if k == 0:
-        return sla.lu_solve(lu, b, check_finite=False), np.zeros(0)
-    Y = sla.lu_solve(lu, np.column_stack([b, Jalpha]), check_finite=False)
+        return sla.lu_solve(lu, b, trans=1, check_finite=False), np.zeros(0)
+    Y = sla.lu_solve(lu, np.column_stack([b, Jalpha]), trans=1, check_finite=False)
     U, sv, Vt = np.linalg.svd(H @ Y[:, 1:])  # Schur complement S, (k, k)
     good = sv > max(cut, float(sv[0]) * np.finfo(float).eps * k)
     coef = (U[:, good].T @ (H @ Y[:, 0] - h)) / sv[good]
