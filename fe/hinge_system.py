@@ -1,0 +1,353 @@
+"""The general hinge condensed onto its contact points: factorise once, reuse for every load.
+
+Boundary conditions (a tensile test machine with rigid grips): every DOF of the tang's
+fixed face is zero; the clevis load face is held in y and z and moves rigidly in x by
+δ. The pin is held only by contact.
+
+Unknowns of the condensed problem (see ``fe.contact`` for conventions):
+
+* contact forces ``p`` (m, 3) at the pin's surface nodes, in local frames
+  ``[n, t1, t2]`` with ``n`` the hole's outward normal (into the hole), ``t1``
+  circumferential, ``t2 = n × t1``;
+* seven rigid amplitudes ``α``: the pin's six rigid-body modes (translations [mm] and
+  rotations about its centre [rad]) and the grip displacement δ [mm].
+
+Why this is exact, not stabilised:
+
+* The clevis, with its grip face fixed, and the tang are non-singular; moving the grip
+  by δ translates the clevis rigidly (it touches nothing else), so ``u_δ`` is a rigid
+  translation and costs no strain energy.
+* The pin is supported on six DOFs in a 3-2-1 pattern only to factorise it. For a
+  self-equilibrated load (``Rᵀ f = 0``, enforced as ``Gᵀ p = e``) the supported solution is
+  an exact solution of the floating pin, and the rigid part is ``R α``. The reactions at
+  the six supports are then zero to round-off (checked by ``support_reaction``).
+* Force control: ``G_δᵀ p = −F`` is the clevis' equilibrium, so the force is reached
+  exactly in every increment, and in the free play (no contact) δ is a zero-energy
+  direction that the solver resolves by minimum norm.
+
+Clearance: each load direction is linearised about its own *touching configuration*
+(pin pushed +Δr against the tang's +x side and the clevis a further +Δr, for tension;
+mirrored for compression). Gaps are measured from the exact cylinders in that
+configuration, so the second-order term Δr²sin²θ/(2R) that a single linearisation about
+the centred pin would miss is included. The two configurations coincide at Δr = 0.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from cad.errors import MeshQualityError, ParameterError
+from cad.surfaces import Cylinder
+from fe.assembly import Factorization, assemble_stiffness
+from fe.element import ElementType
+from mesh.hexmesh import HexMesh
+
+logger = logging.getLogger(__name__)
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+BLOCK_RHS = 128
+"""Right-hand sides per block solve when condensing (see benchmarks/bench_assembly.py)."""
+
+
+@dataclass(frozen=True)
+class ContactGeometry:
+    """Contact points in one configuration.
+
+    Attributes:
+        slave: Slave node per point, shape (m,), int64.
+        pair: Pair index per point (into ``HexMesh.pairs``), shape (m,), int64.
+        frame: Local frames, shape (m, 3, 3): rows n, t1, t2 (unit, global components).
+        g0: Initial normal gap from the exact surfaces, shape (m,) [mm].
+        master_nodes: Nodes of the master facet each point projects on, shape (m, 4), int64.
+        master_weights: Bilinear weights at the projection, shape (m, 4).
+        area_mm2: Slave nodal area, shape (m,) [mm²].
+    """
+
+    slave: IntArray
+    pair: IntArray
+    frame: FloatArray
+    g0: FloatArray
+    master_nodes: IntArray
+    master_weights: FloatArray
+    area_mm2: FloatArray
+
+
+def _bilinear(xi: FloatArray, eta: FloatArray) -> FloatArray:
+    """Quad shape functions at (xi, eta), shape (n, 4), counter-clockwise node order."""
+    return 0.25 * np.stack(
+        [(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta), (1 - xi) * (1 + eta)], axis=1
+    )
+
+
+def project_on_facets(
+    points: FloatArray, nodes: FloatArray, facets: IntArray, *, n_candidates: int = 8
+) -> tuple[IntArray, FloatArray, FloatArray]:
+    """Closest-point projection of points on a set of bilinear quad facets.
+
+    Args:
+        points: Points to project, shape (m, 3) [mm].
+        nodes: Mesh coordinates, shape (n_nodes, 3) [mm].
+        facets: Quads, shape (n_f, 4), int64.
+        n_candidates: Nearest facet centroids tried per point.
+
+    Returns:
+        (facet index (m,), local coordinates (m, 2) in [-1, 1]², distance (m,) [mm]).
+    """
+    q = nodes[facets]  # (n_f, 4, 3)
+    tree = cKDTree(q.mean(axis=1))
+    k = min(n_candidates, len(facets))
+    _, cand = tree.query(points, k=k)
+    cand = cand.reshape(len(points), k)
+    best_f = np.zeros(len(points), dtype=np.int64)
+    best_x = np.zeros((len(points), 2))
+    best_d = np.full(len(points), np.inf)
+    best_out = np.full(len(points), np.inf)
+    for j in range(k):
+        f = cand[:, j]
+        x = q[f]  # (m, 4, 3)
+        s = np.zeros((len(points), 2))
+        for _ in range(8):  # Newton on the tangent-plane equations
+            N = _bilinear(s[:, 0], s[:, 1])
+            dxi = 0.25 * np.stack(
+                [-(1 - s[:, 1]), (1 - s[:, 1]), (1 + s[:, 1]), -(1 + s[:, 1])], axis=1
+            )
+            deta = 0.25 * np.stack(
+                [-(1 - s[:, 0]), -(1 + s[:, 0]), (1 + s[:, 0]), (1 - s[:, 0])], axis=1
+            )
+            r = np.einsum("mn,mni->mi", N, x) - points
+            a1 = np.einsum("mn,mni->mi", dxi, x)
+            a2 = np.einsum("mn,mni->mi", deta, x)
+            A = np.stack([np.stack([(a1 * a1).sum(1), (a1 * a2).sum(1)], 1),
+                          np.stack([(a1 * a2).sum(1), (a2 * a2).sum(1)], 1)], 1)  # (m, 2, 2)
+            b = -np.stack([(r * a1).sum(1), (r * a2).sum(1)], 1)
+            s = s + np.linalg.solve(A, b[..., None])[..., 0]
+        N = _bilinear(s[:, 0], s[:, 1])
+        d = np.linalg.norm(np.einsum("mn,mni->mi", N, x) - points, axis=1)
+        out = np.maximum(np.abs(s).max(axis=1) - 1.0, 0.0)
+        better = (out < best_out - 1e-12) | ((np.abs(out - best_out) <= 1e-12) & (d < best_d))
+        best_f[better], best_x[better], best_d[better], best_out[better] = f[better], s[better], d[better], out[better]
+    if np.any(best_out > 1e-6):
+        i = int(np.argmax(best_out))
+        raise MeshQualityError(
+            f"contact point {i} at {points[i].round(4).tolist()} mm projects outside every master facet "
+            f"(local coordinate overshoot {best_out[i]:.3g})"
+        )
+    return best_f, np.clip(best_x, -1.0, 1.0), best_d
+
+
+def contact_geometry(mesh: HexMesh, shift_mm: dict[str, FloatArray]) -> ContactGeometry:
+    """Build the contact points of every contact pair in a configuration.
+
+    Args:
+        mesh: The hinge mesh (pairs, facet sets and exact surfaces).
+        shift_mm: Pair name → rigid offset of the slave relative to the master in this
+            configuration, shape (3,) [mm].
+
+    Returns:
+        The contact geometry, points ordered pair by pair.
+    """
+    parts = []
+    for ip, pair in enumerate(mesh.pairs):
+        if pair.kind.value != "contact":
+            continue
+        master = mesh.surfaces[pair.master]
+        if not isinstance(master, Cylinder):
+            raise ParameterError(f"pair {pair.name!r}: master surface must be a Cylinder, got {type(master).__name__}")
+        ids, area, _ = mesh.nodal_areas(pair.slave)
+        x = np.asarray(mesh.nodes)[ids] + shift_mm[pair.name]  # (m, 3) slave in this configuration
+        g0 = master.distance_outside(x)
+        n = master.outward_normal(x)  # into the hole, toward the slave
+        axis = np.asarray(master.axis, dtype=np.float64) / np.linalg.norm(master.axis)
+        t1 = np.cross(axis, n)
+        t1 /= np.linalg.norm(t1, axis=1)[:, None]
+        t2 = np.cross(n, t1)
+        foot = x + g0[:, None] * n  # closest point on the exact master surface
+        facets = mesh.facet_sets[pair.master]
+        f, s, _ = project_on_facets(foot, np.asarray(mesh.nodes), facets)
+        parts.append((ids, np.full(len(ids), ip), np.stack([n, t1, t2], axis=1), g0, facets[f],
+                      _bilinear(s[:, 0], s[:, 1]), area))
+    cols = list(zip(*parts, strict=True))
+    return ContactGeometry(*(np.concatenate(c) for c in cols))  # type: ignore[arg-type]
+
+
+def contact_operator(geo: ContactGeometry, n_dof: int) -> sp.csr_matrix:
+    """Return C, shape (3m, n_dof): relative displacement (slave − master) in local frames."""
+    m = len(geo.slave)
+    rows = np.repeat(np.arange(3 * m), 3).reshape(m, 3, 3)  # (m, k, j)
+    vals_s = geo.frame  # (m, k, j)
+    cols_s = 3 * geo.slave[:, None, None] + np.arange(3)[None, None, :]
+    cols_s = np.broadcast_to(cols_s, (m, 3, 3))
+    # master: −N_a n_k·e_j at node a
+    vals_m = -geo.master_weights[:, None, :, None] * geo.frame[:, :, None, :]  # (m, k, a, j)
+    cols_m = 3 * geo.master_nodes[:, None, :, None] + np.arange(3)[None, None, None, :]
+    cols_m = np.broadcast_to(cols_m, (m, 3, 4, 3))
+    rows_m = np.broadcast_to(np.arange(3 * m).reshape(m, 3)[:, :, None, None], (m, 3, 4, 3))
+    C = sp.coo_matrix(
+        (np.concatenate([vals_s.ravel(), vals_m.ravel()]),
+         (np.concatenate([rows.ravel(), rows_m.ravel()]), np.concatenate([cols_s.ravel(), cols_m.ravel()]))),
+        shape=(3 * m, n_dof),
+    )
+    return C.tocsr()
+
+
+def rigid_modes(nodes: FloatArray, centre: FloatArray) -> FloatArray:
+    """Six rigid-body modes of a node set, shape (3 n, 6): translations x, y, z [mm/mm], rotations [mm/rad]."""
+    d = nodes - centre
+    R = np.zeros((len(nodes), 3, 6))
+    R[:, 0, 0] = R[:, 1, 1] = R[:, 2, 2] = 1.0
+    R[:, :, 3] = np.cross([1.0, 0, 0], d)
+    R[:, :, 4] = np.cross([0, 1.0, 0], d)
+    R[:, :, 5] = np.cross([0, 0, 1.0], d)
+    return R.reshape(-1, 6)
+
+
+def _dofs(nodes: IntArray) -> IntArray:
+    return (3 * nodes[:, None] + np.arange(3)).ravel().astype(np.int64)
+
+
+@dataclass
+class HingeSystem:
+    """The factorised hinge, ready to be condensed in any configuration.
+
+    Attributes:
+        mesh: The mesh.
+        K: Global stiffness, shape (n_dof, n_dof) [N/mm].
+        lug_free: Free DOFs of tang and clevis, shape (n_L,).
+        pin_free: Free DOFs of the pin (all but the 3-2-1 supports), shape (n_P,).
+        pin_support: The six supported pin DOFs.
+        pin_R: Pin rigid modes on all DOFs, shape (n_dof, 6).
+        u_grip: Unit grip displacement field (clevis translated +x), shape (n_dof,).
+        lug_factor: Factorisation of K on ``lug_free``.
+        pin_factor: Factorisation of K on ``pin_free``.
+        timings_s: Wall time of assembly and factorisation [s].
+    """
+
+    mesh: HexMesh
+    K: sp.csr_matrix
+    lug_free: IntArray
+    pin_free: IntArray
+    pin_support: IntArray
+    pin_R: FloatArray
+    u_grip: FloatArray
+    lug_factor: Factorization
+    pin_factor: Factorization
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def n_dof(self) -> int:
+        """Number of DOFs of the whole mesh."""
+        return 3 * self.mesh.n_nodes
+
+
+def build_system(mesh: HexMesh, kind: ElementType = ElementType.INCOMPATIBLE) -> HingeSystem:
+    """Assemble and factorise the general hinge (tang + clevis with grips, supported pin).
+
+    Raises:
+        MeshQualityError: If the mesh lacks the parts or faces of a general hinge.
+    """
+    for name in ("tang_fixed", "clevis_load"):
+        if name not in mesh.facet_sets:
+            raise MeshQualityError(f"the mesh has no facet set {name!r}: not a general hinge mesh")
+    t0 = time.perf_counter()
+    K = assemble_stiffness(mesh, kind)
+    t_asm = time.perf_counter() - t0
+    n_dof = 3 * mesh.n_nodes
+    lug_nodes = np.concatenate([mesh.part_nodes("tang"), mesh.part_nodes("clevis")])
+    fixed = _dofs(np.concatenate([mesh.set_nodes("tang_fixed"), mesh.set_nodes("clevis_load")]))
+    lug_free = np.setdiff1d(_dofs(lug_nodes), fixed)
+    pin_nodes = mesh.part_nodes("pin")
+    x = np.asarray(mesh.nodes)[pin_nodes]
+    lo, hi = x[:, 2].min(), x[:, 2].max()
+    r = float(np.hypot(x[:, 0], x[:, 1]).max())
+    near = lambda p: int(pin_nodes[np.argmin(np.linalg.norm(x - np.asarray(p), axis=1))])  # noqa: E731
+    a, b, c = near((0, 0, lo)), near((0, 0, hi)), near((r, 0, lo))
+    support = np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * c + 1], dtype=np.int64)
+    pin_free = np.setdiff1d(_dofs(pin_nodes), support)
+    centre = x.mean(axis=0)
+    R = np.zeros((n_dof, 6))
+    R[_dofs(pin_nodes)] = rigid_modes(x, centre)
+    u_grip = np.zeros(n_dof)
+    u_grip[3 * mesh.part_nodes("clevis")] = 1.0
+    t1 = time.perf_counter()
+    lug_factor = Factorization(K[lug_free][:, lug_free])
+    pin_factor = Factorization(K[pin_free][:, pin_free])
+    t_fac = time.perf_counter() - t1
+    logger.info("assembled %d DOF in %.2f s, factorised in %.2f s", n_dof, t_asm, t_fac)
+    return HingeSystem(mesh, K, lug_free, pin_free, support, R, u_grip, lug_factor, pin_factor,
+                       {"assembly": t_asm, "factorisation": t_fac})
+
+
+@dataclass(frozen=True)
+class Condensed:
+    """The hinge condensed on the contact points of one configuration.
+
+    Attributes:
+        geo: The contact points.
+        C: Contact operator, shape (3m, n_dof).
+        W: Delassus operator, shape (3m, 3m) [mm/N].
+        G: Rigid map, shape (3m, 7): pin modes then grip [mm per unit α].
+        w0: Relative displacement at zero force, shape (m, 3) [mm] (normal part g0).
+        wall_s: Condensation time [s].
+    """
+
+    geo: ContactGeometry
+    C: sp.csr_matrix
+    W: FloatArray
+    G: FloatArray
+    w0: FloatArray
+    wall_s: float
+
+
+def _compliance(C_sub: sp.csr_matrix, factor: Factorization) -> FloatArray:
+    """Return C_sub K⁻¹ C_subᵀ by blocks of right-hand sides, shape (3m, 3m)."""
+    Ct = C_sub.T.tocsc()
+    out = np.zeros((C_sub.shape[0], C_sub.shape[0]))
+    for j in range(0, Ct.shape[1], BLOCK_RHS):
+        cols = slice(j, min(j + BLOCK_RHS, Ct.shape[1]))
+        X = factor.solve(Ct[:, cols].toarray())
+        out[:, cols] = C_sub @ X
+    return 0.5 * (out + out.T)
+
+
+def condense(system: HingeSystem, geo: ContactGeometry) -> Condensed:
+    """Condense the hinge on the contact points of a configuration."""
+    t0 = time.perf_counter()
+    C = contact_operator(geo, system.n_dof)
+    W = _compliance(C[:, system.lug_free], system.lug_factor)
+    W += _compliance(C[:, system.pin_free], system.pin_factor)
+    G = np.column_stack([C @ system.pin_R, C @ system.u_grip])
+    w0 = np.column_stack([geo.g0, np.zeros((len(geo.g0), 2))])
+    return Condensed(geo, C, W, G, w0, time.perf_counter() - t0)
+
+
+def displacement(system: HingeSystem, cond: Condensed, p: FloatArray, alpha: FloatArray) -> FloatArray:
+    """Recover the nodal displacement field, shape (n_nodes, 3) [mm].
+
+    Args:
+        system: The factorised hinge.
+        cond: The configuration's condensed operators.
+        p: Contact forces, shape (m, 3) [N].
+        alpha: Rigid amplitudes (pin modes, grip), shape (7,).
+    """
+    f = cond.C.T @ np.ravel(p)  # nodal contact forces, shape (n_dof,)
+    u = np.zeros(system.n_dof)
+    u[system.lug_free] = system.lug_factor.solve(f[system.lug_free])
+    u[system.pin_free] = system.pin_factor.solve(f[system.pin_free])
+    u += system.pin_R @ alpha[:6] + system.u_grip * alpha[6]
+    return u.reshape(-1, 3)
+
+
+def support_reaction(system: HingeSystem, cond: Condensed, p: FloatArray, u: FloatArray) -> float:
+    """Largest force at the pin's six supports [N]: zero if the pin is truly floating."""
+    f = cond.C.T @ np.ravel(p)
+    res = system.K @ np.ravel(u) - f
+    return float(np.abs(res[system.pin_support]).max())
