@@ -34,7 +34,7 @@ FloatArray = npt.NDArray[np.float64]
 
 _UNITS = {"mm": "mm", "N": "N", "MPa": "MPa", "s": "s", "deg": "°", "rad": "rad", "um": "µm"}
 _RESPONSE_NAMES = {"eta": "loss factor η [–]", "eta_fe": "loss factor η [–]"}
-DPI = 130
+DPI = 110
 
 
 def axis_label(name: str) -> str:
@@ -137,8 +137,8 @@ def plot_surface_3d(
     """
     ia, ib = _pair(surface, x_names)
     base = _base(surface, fixed)
-    aa, bb, zz = _grid_values(surface, ia, ib, base, 61)
-    fig = Figure(figsize=(7.5, 6.0))
+    aa, bb, zz = _grid_values(surface, ia, ib, base, 41)
+    fig = Figure(figsize=(8.0, 6.2), layout="constrained")
     ax = fig.add_subplot(projection="3d")
     surf = ax.plot_surface(aa, bb, zz, cmap="viridis", alpha=0.75, linewidth=0, antialiased=True)
     on = _on_slice(surface, base, (ia, ib))
@@ -176,7 +176,7 @@ def _base(surface: ResponseSurface, fixed: Mapping[str, float] | None) -> FloatA
 def _save(fig: Figure, path: str | Path) -> Path:
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(p, dpi=DPI, bbox_inches="tight")
+    fig.savefig(p, dpi=DPI)
     return p
 
 
@@ -206,8 +206,8 @@ def plot_contour(
     """
     ia, ib = _pair(surface, x_names)
     base = _base(surface, fixed)
-    aa, bb, zz = _grid_values(surface, ia, ib, base, 161)
-    fig = Figure(figsize=(7.5, 6.4))
+    aa, bb, zz = _grid_values(surface, ia, ib, base, 121)
+    fig = Figure(figsize=(7.8, 7.0), layout="constrained")
     ax = fig.add_subplot()
     cf = ax.contourf(aa, bb, zz, levels=14, cmap="viridis")
     levels = np.asarray(cf.levels, dtype=np.float64)
@@ -333,7 +333,7 @@ def plot_slices(
     values.update({k: float(v) for k, v in (at or {}).items()})
     base = _base(surface, values)
     n = surface.n_vars
-    fig = Figure(figsize=(5.0 * n, 4.2))
+    fig = Figure(figsize=(5.0 * n, 4.2), layout="constrained")
     for i, name in enumerate(surface.x_names):
         ax = fig.add_subplot(1, n, i + 1)
         g = np.linspace(surface.lower[i], surface.upper[i], 200)
@@ -352,7 +352,6 @@ def plot_slices(
         ax.legend(fontsize=8)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
     return _save(fig, path)
 
 
@@ -373,7 +372,7 @@ def plot_predicted_vs_actual(
     y = surface.y
     fit = predict(surface, surface.x)
     loo = y - metrics.loo_residuals
-    fig = Figure(figsize=(6.0, 5.6))
+    fig = Figure(figsize=(6.2, 6.0), layout="constrained")
     ax = fig.add_subplot()
     finite = np.isfinite(loo)
     lo = float(min(y.min(), fit.min(), loo[finite].min() if finite.any() else y.min()))

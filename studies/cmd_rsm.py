@@ -50,6 +50,7 @@ def register(subparsers: Any) -> None:
     q = sub.add_parser("paper", help="refit the paper's tables; write the comparison report")
     q.add_argument("--out", type=Path, default=Path("rsm_paper"), help="output folder")
     q.add_argument("--json", action="store_true", help="print JSON instead of Markdown")
+    q.add_argument("--no-plots", action="store_true", help="write the report only")
     q.set_defaults(func=run_paper)
 
 
@@ -197,7 +198,7 @@ def run_paper(args: argparse.Namespace) -> int:
         "modified": {"amplitude_N": 200.0, "preload_N": 100.0},
     }  # the paper's Figs. 7-8, 12-13
     plots: dict[str, str] = {}
-    for h in (cmp.general, cmp.modified):
+    for h in (cmp.general, cmp.modified) if not args.no_plots else ():
         for k, v in plot_all(
             h.surface,
             h.metrics,

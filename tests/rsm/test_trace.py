@@ -1,0 +1,125 @@
+import sqlite3
+
+import numpy as np
+import pytest
+
+from cad.errors import DataError, ParameterError
+from rsm import trace
+from rsm.metrics import fit_metrics
+from rsm.polynomial import fit_response_surface
+from rsm.tables import read_xy
+
+
+def _run(tmp_path, k, clearance, force, eta):
+    d = tmp_path / "runs" / f"p{k:03d}"
+    d.mkdir(parents=True)
+    files = {}
+    for kind, name in [
+        ("step", "hinge.step"),
+        ("mesh_msh", "mesh.msh"),
+        ("mesh_png", "mesh.png"),
+        ("loop_csv", "loop.csv"),
+        ("loop_png", "loop.png"),
+    ]:
+        (d / name).write_text(f"{kind} of point {k}\n", encoding="utf-8")
+        files[kind] = d / name
+    return trace.record_point(
+        tmp_path / "trace.sqlite",
+        study="general-5x5",
+        params={"clearance_mm": clearance, "amplitude_N": force},
+        artifacts=files,
+        mesh_stats={"n_nodes": 1200, "n_elem": 800, "min_scaled_jacobian": 0.62},
+        solver={"n_increments": 40, "friction": 0.2},
+        convergence={"iterations": [3, 4, 3], "max_residual": 1e-9},
+        results={"eta": eta, "w_cycle_mj": 0.12},
+    )
+
+
+def test_round_trip(tmp_path):
+    pid = _run(tmp_path, 1, 0.1, 200.0, 0.0989)
+    t = trace.walk(tmp_path / "trace.sqlite", pid)
+    assert t.params == {"clearance_mm": 0.1, "amplitude_N": 200.0}
+    assert [a.kind for a in t.artifacts] == ["step", "mesh_msh", "mesh_png", "loop_csv", "loop_png"]
+    assert t.intact
+    assert t.mesh_stats["n_elem"] == 800
+    assert t.convergence["iterations"] == [3, 4, 3]
+    assert t.results["eta"] == 0.0989
+    assert t.artifacts[0].recorded_path == "runs/p001/hinge.step"  # relative to the DB folder
+    text = trace.format_trace(t)
+    assert (
+        text.index("step") < text.index("mesh_msh") < text.index("solver") < text.index("loop_csv")
+    )
+
+
+def test_moved_and_changed_files_are_reported(tmp_path):
+    pid = _run(tmp_path, 1, 0.1, 200.0, 0.0989)
+    (tmp_path / "runs" / "p001" / "mesh.png").rename(tmp_path / "elsewhere.png")
+    (tmp_path / "runs" / "p001" / "loop.csv").write_text("edited\n", encoding="utf-8")
+    t = trace.walk(tmp_path / "trace.sqlite", pid)
+    states = {a.kind: a.state for a in t.artifacts}
+    assert states["mesh_png"] is trace.ArtifactState.MISSING
+    assert states["loop_csv"] is trace.ArtifactState.CHANGED
+    assert states["step"] is trace.ArtifactState.OK
+    assert not t.intact
+    text = trace.format_trace(t)
+    assert "MISSING" in text
+    assert "moved or deleted" in text
+    assert "CHANGED" in text
+
+
+def test_whole_study_folder_can_move(tmp_path):
+    pid = _run(tmp_path / "a", 1, 0.1, 200.0, 0.0989)
+    (tmp_path / "a").rename(tmp_path / "b")
+    assert trace.walk(tmp_path / "b" / "trace.sqlite", pid).intact
+
+
+def test_failed_point_and_validation(tmp_path):
+    db = tmp_path / "trace.sqlite"
+    pid = trace.record_point(
+        db,
+        study="s",
+        params={"clearance_mm": 0.4},
+        status="failed",
+        error="Newton did not converge at increment 12",
+    )
+    t = trace.walk(db, pid)
+    assert t.status == "failed"
+    assert "increment 12" in (t.error or "")
+    with pytest.raises(ParameterError, match="error must be given"):
+        trace.record_point(db, study="s", params={"a": 1.0}, status="failed")
+    with pytest.raises(FileNotFoundError, match="artifact 'step'"):
+        trace.record_point(
+            db, study="s", params={"a": 1.0}, artifacts={"step": tmp_path / "no.step"}
+        )
+
+
+def test_walk_unknown_point_and_missing_db(tmp_path):
+    _run(tmp_path, 1, 0.1, 200.0, 0.0989)
+    with pytest.raises(DataError, match="no point 99"):
+        trace.walk(tmp_path / "trace.sqlite", 99)
+    with pytest.raises(FileNotFoundError):
+        trace.walk(tmp_path / "absent.sqlite", 1)
+    assert not (tmp_path / "absent.sqlite").exists()  # walking never creates a database
+
+
+def test_export_fit_and_record_fit(tmp_path):
+    levels = [(c, f) for c in (0.0, 0.2, 0.4) for f in (100.0, 300.0, 500.0)]
+    ids = [
+        _run(tmp_path, k, c, f, 0.05 + 0.1 * c - 1e-4 * f + 2e-7 * f * f)
+        for k, (c, f) in enumerate(levels)
+    ]
+    db = tmp_path / "trace.sqlite"
+    table = trace.export_table(db, tmp_path / "table.csv", study="general-5x5")
+    xy = read_xy(table, ["clearance_mm", "amplitude_N"], "eta")
+    assert xy.labels == tuple(f"point {i}" for i in ids)
+    s = fit_response_surface(xy.x, xy.y, 2, x_names=xy.x_names, labels=xy.labels)
+    fid = trace.record_fit(db, surface=s, metrics=fit_metrics(s, warn=False), point_ids=ids)
+    assert trace.walk(db, ids[3]).fit_ids == (fid,)
+    with sqlite3.connect(db) as con:
+        n = con.execute("SELECT count(*) FROM fit_points WHERE fit_id = ?", (fid,)).fetchone()[0]
+    assert n == len(ids)
+    with pytest.raises(DataError, match="not in the trace"):
+        trace.record_fit(
+            db, surface=s, metrics=fit_metrics(s, warn=False), point_ids=[*ids[:-1], 999]
+        )
+    assert np.isfinite(s.condition_number)
