@@ -19,8 +19,8 @@ Two formulations share one isotropic kernel:
 
 Everything is vectorised over elements. Element DOFs are ordered node-major,
 ``3 * local_node + component``, matching the global ``dof = 3 * node + component``.
-Stresses and strains use Voigt order (xx, yy, zz, yz, xz, xy); strains are engineering
-strains in the Voigt vector but the kernels work with tensors.
+Stresses are returned in Voigt order (xx, yy, zz, yz, xz, xy); internally the kernels work
+with displacement-gradient tensors and never form B matrices.
 """
 
 from __future__ import annotations
