@@ -51,7 +51,7 @@ import itertools
 import math
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import build123d as bd
 
@@ -362,7 +362,7 @@ def _groove_half_span(dw: float, f: float, depth: float, alpha_deg: float) -> fl
     return dw * math.sqrt(f * f - (f - depth) ** 2) + offset
 
 
-def _checked(shape: bd.Shape, name: str) -> bd.Solid:
+def _checked(shape: bd.Shape[Any], name: str) -> bd.Solid:
     solids = shape.solids()
     if len(solids) != 1 or not solids[0].is_valid:
         raise GeometryError(
@@ -390,10 +390,10 @@ def _swept(
     faces: tuple[bd.Face, ...], slabs: tuple[Slab, ...], name: str
 ) -> tuple[bd.Solid, Sweep]:
     """Return the solid made by extruding ``faces`` slab by slab, and its Sweep."""
-    body = None
-    for s in slabs:
-        layer = _extrude(tuple(faces[i] for i in s.faces), s.z0_mm, s.z1_mm)
-        body = layer if body is None else body + layer
+    layers = [_extrude(tuple(faces[i] for i in s.faces), s.z0_mm, s.z1_mm) for s in slabs]
+    body = layers[0]
+    for layer in layers[1:]:
+        body = body + layer
     return _checked(body, name), Sweep(faces, slabs)
 
 
