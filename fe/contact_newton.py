@@ -12,6 +12,7 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 import scipy.linalg as sla
+import scipy.sparse as sp
 
 from fe.contact_law import ContactStatus, CoulombStep, coulomb_step, slip_frame
 
@@ -150,65 +151,93 @@ def newton_step(
 
     s = -it.p.copy()  # shift: dp = T dq + s
     s[closed] = 0.0
-    C_c = it.C[closed]
     sl = closed[is_slip]
-    a0 = prob.mu * it.p[sl, 0] - np.sum(it.p[sl, 1:] * u_c[is_slip], axis=1)
-    s[sl, 1:] = a0[:, None] * u_c[is_slip]
+    u_s, v_s, k_s = u_c[is_slip], v_c[is_slip], kap_c[is_slip]
+    a0 = prob.mu * it.p[sl, 0] - np.sum(it.p[sl, 1:] * u_s, axis=1)
+    s[sl, 1:] = a0[:, None] * u_s
     s[closed[is_free], 1:] = -it.p[closed[is_free], 1:]
 
-    # Target of the rows (before moving the shift to the right-hand side).
-    target = -it.g[closed].copy()  # (c, 3): -w_n, -Δw_t
-    target[is_slip, 1] = -np.sum(C_c[is_slip, 1:] * v_c[is_slip], axis=1) / r[sl]
-    Ws = (prob.W @ s.ravel()).reshape(-1, 3)[closed]  # (c, 3)
-    idx = (3 * closed[:, None] + np.arange(3)).ravel()
-    J = prob.W[np.ix_(idx, idx)]  # (3c, 3c) copy
-    Gc = prob.G[idx].reshape(len(closed), 3, prob.G.shape[1])  # (c, 3, k)
-    jn, j1, j2 = (3 * np.flatnonzero(is_slip) + a for a in range(3))
-    mu = prob.mu
-    # Column transform T (slip points): n-col += μ u·t-cols, t1-col := v·t-cols.
-    ux, uy = u_c[is_slip, 0], u_c[is_slip, 1]
-    vx, vy = v_c[is_slip, 0], v_c[is_slip, 1]
-    col1, col2 = J[:, j1], J[:, j2]
-    J[:, jn] += mu * (col1 * ux + col2 * uy)
-    J[:, j1] = col1 * vx + col2 * vy
-    Gcol = Gc.copy()  # columns of Gᵀ T
-    g1, g2 = Gc[is_slip, 1], Gc[is_slip, 2]
-    Gcol[is_slip, 0] += mu * (g1 * ux[:, None] + g2 * uy[:, None])
-    Gcol[is_slip, 1] = g1 * vx[:, None] + g2 * vy[:, None]
-    # Row transform R (slip points): t1-row := κ v·t-rows (+ diagonal (1-κ)/r).
-    ks = kap_c[is_slip]
-    row1, row2 = J[j1], J[j2]
-    J[j1] = ks[:, None] * (row1 * vx[:, None] + row2 * vy[:, None])
-    J[j1, j1] += (1.0 - ks) / r[sl]
-    Grow = Gc.copy()
-    Grow[is_slip, 1] = ks[:, None] * (g1 * vx[:, None] + g2 * vy[:, None])
-    rhs = target.copy()
-    rhs[:, 0] -= Ws[:, 0]
-    rhs[~is_slip, 1:] -= Ws[~is_slip, 1:]
-    rhs[is_slip, 1] -= ks * (Ws[is_slip, 1] * vx + Ws[is_slip, 2] * vy)
-
+    # Per closed point: columns of T (slot → 3 components) and rows of R, (c, 3, 3).
+    t_loc = np.broadcast_to(np.eye(3), (len(closed), 3, 3)).copy()
+    t_loc[is_slip, 1:, 0] = prob.mu * u_s
+    t_loc[is_slip, 1:, 1] = v_s
+    r_loc = t_loc.transpose(0, 2, 1).copy()
+    r_loc[is_slip, 0, 1:] = 0.0
+    r_loc[is_slip, 1, 1:] = k_s[:, None] * v_s
     keep = np.ones((len(closed), 3), dtype=bool)
     keep[is_slip, 2] = False
     keep[is_free, 1:] = False
-    kf = keep.ravel()
-    if not kf.all():
-        J = J[np.ix_(kf, kf)]
-    Jalpha = Grow.reshape(3 * len(closed), prob.G.shape[1])[kf]  # (n_q, k)
-    H = Gcol.reshape(3 * len(closed), prob.G.shape[1])[kf].T  # (k, n_q)
-    b = rhs.ravel()[kf] + Jalpha @ it.alpha
+    T, R = _slot_operators(closed, keep, t_loc, r_loc, 3 * len(it.p))
+
+    # Own targets of the rows: -w_n, -Δw_t (stick), -C_t·v/r (slip, second slot).
+    own = -it.g[closed]
+    own[is_slip, 1] = -np.sum(it.C[sl, 1:] * v_s, axis=1) / r[sl]
+    Ws = prob.W @ s.ravel()  # (3m,)
+    b = own[keep] - R @ Ws
+    J = _columns_times_t(R @ prob.W, closed, keep, is_slip, prob.mu * u_s, v_s)
+    q_slip = (np.cumsum(keep.ravel()) - 1).reshape(-1, 3)[is_slip, 1]
+    J[q_slip, q_slip] += (1.0 - k_s) / r[sl]
+    Jalpha = R @ prob.G  # (n_q, k)
+    H = (T.T @ prob.G).T  # (k, n_q)
+    b = b + Jalpha @ it.alpha
     h = prob.e - prob.G.T @ (it.p + s).ravel()
 
     dq, alpha_new = _solve_bordered(J, Jalpha, H, b, h, cut)
     if dq is None:
         return None
-    full = np.zeros(3 * len(closed))
-    full[kf] = dq
-    dqc = full.reshape(-1, 3)
-    dp = s
-    dp[closed, 0] += dqc[:, 0]
-    dp[closed[~is_slip & ~is_free], 1:] += dqc[~is_slip & ~is_free, 1:]
-    dp[sl, 1:] += mu * dqc[is_slip, 0, None] * u_c[is_slip] + dqc[is_slip, 1, None] * v_c[is_slip]
-    return Step(dp, alpha_new)
+    return Step(s + (T @ dq).reshape(-1, 3), alpha_new)
+
+
+def _columns_times_t(
+    A: FloatArray,
+    closed: npt.NDArray[np.int64],
+    keep: npt.NDArray[np.bool_],
+    is_slip: npt.NDArray[np.bool_],
+    mu_u: FloatArray,
+    v: FloatArray,
+) -> FloatArray:
+    """Return ``A T`` by column gathers (row-contiguous, no transposed copy of A).
+
+    Args:
+        A: ``R W``, shape (n_q, 3m), C-ordered.
+        closed: Closed point indices, shape (c,).
+        keep: Kept slots, shape (c, 3).
+        is_slip: Slipping closed points, shape (c,).
+        mu_u: ``μ u`` of slipping points, shape (n_slip, 2).
+        v: ``v`` of slipping points, shape (n_slip, 2).
+
+    Returns:
+        ``J = A T``, shape (n_q, n_q), C-ordered.
+    """
+    point, slot = np.nonzero(keep)
+    J = np.take(A, 3 * closed[point] + slot, axis=1)  # stick and normal columns
+    q = (np.cumsum(keep.ravel()) - 1).reshape(-1, 3)[is_slip]  # (n_slip, 3)
+    t1 = np.take(A, 3 * closed[is_slip] + 1, axis=1)  # (n_q, n_slip)
+    t2 = np.take(A, 3 * closed[is_slip] + 2, axis=1)
+    J[:, q[:, 0]] += t1 * mu_u[:, 0] + t2 * mu_u[:, 1]
+    J[:, q[:, 1]] = t1 * v[:, 0] + t2 * v[:, 1]
+    return J
+
+
+def _slot_operators(
+    closed: npt.NDArray[np.int64],
+    keep: npt.NDArray[np.bool_],
+    t_loc: FloatArray,
+    r_loc: FloatArray,
+    n_dof: int,
+) -> tuple[sp.csr_array, sp.csr_array]:
+    """Assemble T (n_dof, n_q) and R (n_q, n_dof) from per-point blocks of kept slots."""
+    point, slot = np.nonzero(keep)  # point-major, so q = position in this list
+    q = np.arange(len(point))
+    comp = 3 * closed[point][:, None] + np.arange(3)  # (n_q, 3) global DOFs
+    t_val = t_loc[point, :, slot]  # (n_q, 3): component a of column q
+    r_val = r_loc[point, slot, :]  # (n_q, 3): component a of row q
+    rows_q = np.repeat(q, 3)
+    T = sp.csr_array((t_val.ravel(), (comp.ravel(), rows_q)), shape=(n_dof, len(q)))
+    R = sp.csr_array((r_val.ravel(), (rows_q, comp.ravel())), shape=(len(q), n_dof))
+    T.eliminate_zeros()
+    R.eliminate_zeros()
+    return T, R
 
 
 def _solve_bordered(
@@ -230,7 +259,7 @@ def _solve_bordered(
     with warnings.catch_warnings():
         warnings.simplefilter("error", sla.LinAlgWarning)
         try:
-            # Factor Jᵀ: it is Fortran-ordered, so LAPACK works in place (no n_q² copy).
+            # J is C-ordered, so J.T is Fortran-ordered: LAPACK factors Jᵀ in place.
             lu = sla.lu_factor(J.T, overwrite_a=True, check_finite=False)
         except sla.LinAlgWarning:
             return None, np.zeros(k)
