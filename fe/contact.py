@@ -100,8 +100,10 @@ class ContactSettings:
         max_iter: Newton iteration cap per increment.
         warm_start: Start from the previous increment's ``p`` and ``α`` (else from zero).
         armijo: Sufficient-decrease constant of the line search.
-        min_step: Smallest line-search step before the ``r`` rescue is triggered.
-        rigid_rcond: Relative singular-value cut for undetermined rigid directions.
+        min_step: Smallest line-search step before a rescue is taken.
+        rigid_rcond: Rigid directions whose singular value in the k×k Schur complement
+            ``Gᵀ J⁻¹ G`` is below ``rigid_rcond · max_j |G_j|² / mean(diag W)`` are
+            treated as undetermined (they get no component of ``α``).
     """
 
     mu: float = 0.0

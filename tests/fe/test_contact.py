@@ -340,3 +340,20 @@ def test_rescue_path_converges_to_the_same_solution():
     assert sum(r.rescues for r in hard) >= 2
     for a, b in zip(ref, hard, strict=True):
         np.testing.assert_allclose(b.state.p, a.state.p, atol=CMP * np.max(np.abs(a.state.p)))
+
+
+def test_frictionless_load_cycle_returns_to_zero_displacement():
+    m = 6
+    K, C, W = random_structure(m, seed=8)
+    f0 = np.random.default_rng(8).normal(size=K.shape[0])
+    f0[0 : 3 * m : 3] -= 2.0  # mostly pressing
+
+    def f_of(lam):
+        return lam * f0
+
+    hist = structure_history(K, C, W, f_of, ContactSettings(mu=0.0), load_path([0, 1, 0], 10))
+    assert max(h[3].n_slip for h in hist) > 0  # closed points slide freely
+    p_max = max(np.max(np.abs(h[3].state.p)) for h in hist)
+    u_max = max(np.max(np.abs(h[2])) for h in hist)
+    np.testing.assert_allclose(hist[-1][3].state.p, 0.0, atol=CMP * p_max)
+    np.testing.assert_allclose(hist[-1][2], 0.0, atol=CMP * u_max)
