@@ -143,6 +143,41 @@ def test_jenkins_cycle_reproduces_analytic_loop_and_friction_work(theta):
     assert statuses[lams.index(0.55)] == ContactStatus.SLIP
 
 
+def test_three_block_iwan_cycle_matches_masing_loop_area():
+    """Load node L (spring k2 to ground) drags three blocks through springs k1_i.
+
+    Block i sticks until its spring force reaches T_i = μ N_i. For tip force F = 5 the
+    backbone F(U) = k2 U + Σ min(k1_i U, T_i) gives U = 2, and the Masing loop area is
+    Σ 4 T_i (U - T_i/k1_i) = 14.5. All kinks fall on the ΔF = 0.5 load grid.
+    """
+    k2, k1 = 1.0, np.array([1.0, 2.0, 1.0])
+    mu, normal = 0.25, np.array([2.0, 6.0, 4.0])  # T = 0.5, 1.5, 1.0
+    Kd = np.zeros((4, 4))
+    Kd[0, 0] = k2 + k1.sum()
+    Kd[0, 1:] = Kd[1:, 0] = -k1
+    Kd[1:, 1:] = np.diag(k1)
+    K = np.kron(Kd, np.eye(3))
+    C = np.eye(12)[3:]
+    W = C @ np.linalg.solve(K, C.T)
+    d = np.array([0.0, np.cos(0.3), np.sin(0.3)])
+
+    def f_of(lam):
+        f = np.zeros(12)
+        f[:3] = 5.0 * lam * d
+        f[3::3] = -normal
+        return f
+
+    lams = load_path([0.0, 1.0, -1.0, 1.0], per_unit=10)
+    hist = structure_history(K, C, W, f_of, ContactSettings(mu=mu), lams)
+    cycle = hist[lams.index(1.0) :]
+    area = sum(0.5 * (a[1] + b[1]) @ (b[2] - a[2]) for a, b in pairwise(cycle))
+    friction = sum(float(np.sum(h[3].friction_work)) for h in cycle[1:])
+    assert area == pytest.approx(14.5, rel=CMP)
+    assert friction == pytest.approx(14.5, rel=CMP)
+    np.testing.assert_allclose(cycle[-1][2], cycle[0][2], atol=CMP)
+    assert cycle[0][2][:3] @ d == pytest.approx(2.0, rel=CMP)  # tip displacement U
+
+
 @pytest.mark.parametrize("mu", [0.0, 0.2], ids=["frictionless", "mu0.2"])
 def test_energy_balance_each_increment_and_over_cycle(mu):
     m = 5
