@@ -38,9 +38,11 @@ the loop stops at ``max_iter`` with a ConvergenceError.
 
 Convergence: the scaled residual ``ρ = max(|C/r|_∞ / d_ref, |Gᵀp - e|_∞ / f_ref)`` must
 drop to ``tol``, where ``d_ref = max(|W p|_∞, |G α|_∞, |w_free - (0, w_t_prev)|_∞)`` [mm]
-and ``f_ref = max(|e|_∞, ||G|ᵀ |p||_∞)`` [N]. ``C/r`` is the violation in displacement
-units (penetration, stick drift, or force/r), so ``ρ`` is a relative error that is
-invariant under scaling the load and independent of units.
+and ``f_ref = max(|e|_∞, ||G|ᵀ |p||_∞, r̄ d_ref max|G|)`` [N] (the last term is the load
+one point takes at the displacement scale, so ``ρ`` stays meaningful when ``e = 0``).
+``C/r`` is the violation in displacement units (penetration, stick drift, or force/r),
+so ``ρ`` is a relative error that is invariant under scaling the load and independent
+of units.
 
 Energy: for increment ``p_prev → p`` the consistent (trapezoidal) works are
 ``friction_work_i = -½ (p_t,prev + p_t)·Δw_t`` and
@@ -330,19 +332,49 @@ class _Rescued(NamedTuple):
 def _rescue(
     prob: Problem, it: Iterate, r: FloatArray, r_base: FloatArray, cut: float, count: int
 ) -> _Rescued:
-    """Leave a stall: alternately a bilateral predictor (if points are open) and a new r.
+    """Leave a stall: alternately a contact predictor (if points are open) and a new r.
 
-    The predictor takes the full step with every open point closed (frictionless); the r
-    change (``r_base`` times the next of ``RESCUE_FACTORS``) keeps the iterate but changes
-    the merit and the active-set path. Neither changes the solution, and the alternation
-    keeps Newton from repeating a cycle.
+    The predictor first moves unbalanced floating bodies rigidly to first contact (see
+    :func:`_approach`) and closes the touching points; without floating bodies it closes
+    every open point. It then takes the full Newton step with those points closed and
+    frictionless. The r change (``r_base`` times the next of ``RESCUE_FACTORS``) keeps the
+    iterate but changes the merit and the active-set path. Neither changes the solution,
+    and the alternation keeps Newton from repeating a cycle.
     """
-    if count % 2 == 0 and np.any(it.law.status == ContactStatus.OPEN):
-        step = newton_step(prob, it, r, cut, close_open=True)
+    is_open = it.law.status == ContactStatus.OPEN
+    if count % 2 == 0 and np.any(is_open):
+        approach = _approach(prob, it, is_open)
+        if approach is not None:
+            it, is_open = evaluate(prob, it.p, approach[0], r), approach[1]
+        step = newton_step(prob, it, r, cut, force_closed=is_open)
         if step is not None:
             return _Rescued(evaluate(prob, it.p + step.dp, step.alpha_new, r), r)
     new_r = r_base * RESCUE_FACTORS[(count // 2) % len(RESCUE_FACTORS)]
     return _Rescued(evaluate(prob, it.p, it.alpha, new_r), new_r)
+
+
+def _approach(
+    prob: Problem, it: Iterate, is_open: npt.NDArray[np.bool_]
+) -> tuple[FloatArray, npt.NDArray[np.bool_]] | None:
+    """Move floating bodies along the unbalanced load until the first open point touches.
+
+    The direction ``d = Gᵀp - e`` is the rigid motion on which the unbalanced external
+    load does positive work; the step is the smallest ``s >= 0`` that closes an open gap,
+    ``w_n + s G_n d = 0``. Returns the moved ``α`` and the touching points, or None if
+    there is no floating body, no unbalance, or no gap closes along ``d``.
+    """
+    if it.eq.size == 0 or not np.any(it.eq):
+        return None
+    rate = (prob.G[0::3] @ it.eq)[is_open]  # d w_n / d s of the open points
+    closing = rate < 0.0
+    if not np.any(closing):
+        return None
+    s = np.full(len(rate), np.inf)
+    s[closing] = np.maximum(it.w[is_open, 0][closing], 0.0) / -rate[closing]
+    s_min = float(s.min())
+    touching = np.zeros(len(is_open), dtype=bool)
+    touching[np.flatnonzero(is_open)[s <= s_min * (1.0 + 1e-9)]] = True
+    return it.alpha + s_min * it.eq, touching
 
 
 def _result(

@@ -91,7 +91,10 @@ def evaluate(prob: Problem, p: FloatArray, alpha: FloatArray, r: FloatArray) -> 
     drift = prob.w_free.copy()
     drift[:, 1:] -= prob.w_t_prev
     d_ref = max(_amax(Wp), _amax(Ga), _amax(drift))
-    f_ref = max(_amax(prob.e), _amax(np.abs(prob.G).T @ np.abs(p.ravel())))
+    # r̄ d_ref max|G|: the load a single point takes at the displacement scale; it keeps ρ
+    # meaningful when e = 0 (a free body at rest) and p is round-off.
+    p_scale = r_bar * d_ref * _amax(prob.G)
+    f_ref = max(_amax(prob.e), _amax(np.abs(prob.G).T @ np.abs(p.ravel())), p_scale)
     rho = max(_ratio(_amax(Cr), d_ref), _ratio(_amax(eq), f_ref))
     return Iterate(p, alpha, w, g, law, C, eq, merit, rho)
 
@@ -117,11 +120,16 @@ class Step(NamedTuple):
 
 
 def newton_step(
-    prob: Problem, it: Iterate, r: FloatArray, cut: float, *, close_open: bool = False
+    prob: Problem,
+    it: Iterate,
+    r: FloatArray,
+    cut: float,
+    *,
+    force_closed: npt.NDArray[np.bool_] | None = None,
 ) -> Step | None:
     """Solve the reduced generalised-Newton system; None if it is singular.
 
-    With ``close_open`` the open points are treated as closed and frictionless (a
+    Open points flagged in ``force_closed`` are treated as closed and frictionless (a
     bilateral predictor that lets a floating body that touches nothing find contact).
 
     Unknowns per closed point (slots n, t1, t2): stick (dp_n, dp_t1, dp_t2); slip
@@ -135,13 +143,14 @@ def newton_step(
         it: Current iterate (its trial status defines the active sets).
         r: Augmentation per point, shape (m,), float64 [N/mm].
         cut: Absolute singular-value cut of the rigid-body Schur complement.
-        close_open: Use the bilateral predictor described above.
+        force_closed: Points to close if open, shape (m,), bool (default none).
 
     Returns:
         The full Newton step, or None if the reduced matrix is numerically singular.
     """
     status = it.law.status
-    forced = status == ContactStatus.OPEN if close_open else np.zeros(len(status), dtype=bool)
+    forced = status == ContactStatus.OPEN
+    forced &= np.zeros(len(status), dtype=bool) if force_closed is None else force_closed
     closed = np.flatnonzero((status != ContactStatus.OPEN) | forced)
     u, kappa = slip_frame(it.g, it.p, prob.mu, r)
     is_slip = (status[closed] == ContactStatus.SLIP) & (prob.mu > 0.0)

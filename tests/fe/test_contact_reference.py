@@ -222,3 +222,42 @@ def test_floating_frictional_punch_with_spin_and_zero_column(tangential):
         state = ref.state
     assert min(ref.n_open, ref.n_stick, ref.n_slip) > 0
     assert ref.state.status[m // 2] == ContactStatus.STICK  # Cattaneo: centre sticks
+
+
+def pin_in_hole(m=48, clearance=0.01):
+    """Floating pin in a hole: m points on the circle, α = (x, y, axial) pin motion."""
+    th = np.linspace(0.0, 2 * np.pi, m, endpoint=False)
+    radial = np.stack([np.cos(th), np.sin(th)], axis=1)
+    tangent = np.stack([-np.sin(th), np.cos(th)], axis=1)
+    d = np.abs(th[:, None] - th[None])
+    d = np.minimum(d, 2 * np.pi - d)
+    W = np.kron(1e-3 * np.exp(-d / 0.2), np.diag([1.0, 1.3, 1.3])) + 1e-3 * np.eye(3 * m)
+    G = np.zeros((3 * m, 3))
+    G[0::3, :2] = -radial  # moving the pin towards a point closes its gap
+    G[1::3, :2] = tangent
+    G[2::3, 2] = 1.0  # axial: seen by friction only
+    w_free = np.zeros((m, 3))
+    w_free[:, 0] = clearance
+    return W, G, w_free
+
+
+def test_pin_with_clearance_crosses_the_gap_on_every_load_reversal():
+    W, G, w_free = pin_in_hole()
+    m = len(w_free)
+    force = np.array([50.0, 20.0, 0.0])
+    lams = [i / 10 for i in range(11)] + [1 - i / 10 for i in range(1, 21)]
+    lams += [-1 + i / 10 for i in range(1, 21)]
+    state, alpha_at = ContactState.initial(m, 3), {}
+    settings = ContactSettings(mu=0.2)
+    for i, lam in enumerate(lams):
+        e = -lam * force  # the pin's load is balanced by the contact forces: Gᵀp = -F
+        res = solve_increment(W, w_free, state, settings, G=G, e=e, increment=i)
+        check_conditions(W, w_free, state, res, settings.mu, G=G, e=e)
+        state = res.state
+        if abs(lam) == 1.0:
+            alpha_at.setdefault(lam, []).append(state.alpha)
+    # The pin presses towards ±F, beyond the clearance (0.01 mm), at every load peak.
+    unit = force[:2] / np.linalg.norm(force[:2])
+    assert all(a[:2] @ unit > 0.01 for a in alpha_at[1.0])
+    assert all(a[:2] @ unit < -0.01 for a in alpha_at[-1.0])
+    assert state.alpha[2] == 0.0  # axial motion is never excited
