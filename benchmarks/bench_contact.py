@@ -40,7 +40,7 @@ def rigid_map(xy):
     return G
 
 
-def run(m_target: int, per_quarter: int, mu: float = 0.3):
+def run(m_target: int, per_quarter: int, mu: float = 0.3, chord_rate: float = 0.1):
     n_side = round(np.sqrt(m_target))
     spacing = 1.0 / n_side  # grid spans 1 mm
     xy, W = half_space_grid(n_side, spacing)
@@ -54,36 +54,42 @@ def run(m_target: int, per_quarter: int, mu: float = 0.3):
     for a, b in [(0.0, 1.0), (1.0, -1.0), (-1.0, 1.0)]:
         n = per_quarter * round(abs(b - a))
         q_levels += [a + (b - a) * i / n for i in range(1, n + 1)]
-    settings = ContactSettings(mu=mu)
+    settings = ContactSettings(mu=mu, chord_rate=chord_rate)
     state = ContactState.initial(m, 4)
-    iters, counts = 0, None
+    iters, n_lu, counts = 0, 0, None
     tracemalloc.start()
     t0 = time.perf_counter()
     for i, q in enumerate(q_levels):
         e = np.array([P, 0.8 * mu * P * q, 0.0, 0.0])
         res = solve_increment(W, w_free, state, settings, G=G, e=e, increment=i)
         iters += res.iterations
+        n_lu += res.factorizations
         state = res.state
         if q == 1.0 and counts is None:
             counts = (res.n_open, res.n_stick, res.n_slip)
     wall = time.perf_counter() - t0
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    return m, len(q_levels), iters, wall / len(q_levels), peak / 2**20, counts
+    return m, len(q_levels), iters, n_lu, wall / len(q_levels), peak / 2**20, counts
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--sizes", type=int, nargs="+", default=[300, 1000, 1500])
     parser.add_argument("--per-quarter", type=int, default=25)
+    parser.add_argument("--chord-rate", type=float, default=0.1)
     args = parser.parse_args()
-    header = "   m  increments  iterations  it/incr  s/increment  peak MiB  open/stick/slip at +Q"
-    print(header)
+    print(
+        "   m  increments  iterations  it/incr  LU/incr  s/increment  peak MiB"
+        "  open/stick/slip at +Q"
+    )
     for m_target in args.sizes:
-        m, n_inc, iters, per, peak, counts = run(m_target, args.per_quarter)
+        m, n_inc, iters, n_lu, per, peak, counts = run(
+            m_target, args.per_quarter, chord_rate=args.chord_rate
+        )
         print(
-            f"{m:4d}  {n_inc:10d}  {iters:10d}  {iters / n_inc:7.2f}  {per:11.4f}  {peak:8.1f}"
-            f"  {counts}"
+            f"{m:4d}  {n_inc:10d}  {iters:10d}  {iters / n_inc:7.2f}  {n_lu / n_inc:7.2f}"
+            f"  {per:11.4f}  {peak:8.1f}  {counts}"
         )
 
 

@@ -103,6 +103,9 @@ class ContactSettings:
         warm_start: Start from the previous increment's ``p`` and ``α`` (else from zero).
         armijo: Sufficient-decrease constant of the line search.
         min_step: Smallest line-search step before a rescue is taken.
+        chord_rate: Keep reusing the last factorisation (chord steps with the exact
+            residual) while each such step divides ``ρ`` by at least ``1/chord_rate``
+            and the unknown layout is unchanged; 0 refactorises at every iteration.
         rigid_rcond: Rigid directions whose singular value in the k×k Schur complement
             ``Gᵀ J⁻¹ G`` is below ``rigid_rcond · max_j |G_j|² / mean(diag W)`` are
             treated as undetermined (they get no component of ``α``).
@@ -115,6 +118,7 @@ class ContactSettings:
     warm_start: bool = True
     armijo: float = 1e-4
     min_step: float = 1e-4
+    chord_rate: float = 0.1
     rigid_rcond: float = 1e-10
 
     def __post_init__(self) -> None:
@@ -124,6 +128,7 @@ class ContactSettings:
         check_range("max_iter", self.max_iter, 1, float("inf"))
         check_range("armijo", self.armijo, 0.0, 0.5, lo_open=True, hi_open=True)
         check_range("min_step", self.min_step, 0.0, 1.0, lo_open=True, hi_open=True)
+        check_range("chord_rate", self.chord_rate, 0.0, 1.0, hi_open=True)
         check_range("rigid_rcond", self.rigid_rcond, 0.0, 1.0, lo_open=True, hi_open=True)
 
 
@@ -195,7 +200,8 @@ class IncrementResult:
         friction_work: ``-½ (p_t,prev + p_t)·Δw_t``, shape (m,), float64 [N·mm].
         normal_work: ``-½ (p_n,prev + p_n) Δw_n``, shape (m,), float64 [N·mm].
         dissipation: ``-p_t·Δw_t >= 0`` (backward Euler), shape (m,), float64 [N·mm].
-        rescues: How many times ``r`` was rescaled.
+        rescues: How many rescues (predictor or ``r`` change) were needed.
+        factorizations: LU factorisations done (iterations minus chord steps).
     """
 
     state: ContactState
@@ -208,6 +214,7 @@ class IncrementResult:
     normal_work: FloatArray
     dissipation: FloatArray
     rescues: int
+    factorizations: int
 
 
 def _validate(
@@ -300,8 +307,8 @@ def solve_increment(
     else:
         p0, a0 = np.zeros((m, 3)), np.zeros(k)
     it = evaluate(prob, p0, a0, r)
-    history, rescues = [it.rho], 0
-    n_iter = 0
+    history, rescues, n_factor = [it.rho], 0, 0
+    n_iter, factor = 0, None
     while it.rho > settings.tol:
         if n_iter == settings.max_iter:
             partial = ContactState(it.p, it.w, it.law.status, it.alpha)
@@ -313,15 +320,22 @@ def solve_increment(
                 partial=partial,
             )
         n_iter += 1
-        step = newton_step(prob, it, r, cut)
+        step = newton_step(prob, it, r, cut, reuse=factor)
         new = None if step is None else _line_search(prob, it, step, r, settings)
+        if step is not None and step.reused and new is None:
+            step = newton_step(prob, it, r, cut)  # the stale matrix was not good enough
+            new = None if step is None else _line_search(prob, it, step, r, settings)
+        n_factor += int(step is not None and not step.reused)
         if new is None:
             rescued = _rescue(prob, it, r, r_base, cut, rescues)
             rescues += 1
-            r, new = rescued.law_r, rescued.iterate
+            r, new, factor = rescued.law_r, rescued.iterate, None
+        elif step is not None:
+            fast = new.rho <= settings.chord_rate * it.rho
+            factor = step.factor if fast and settings.chord_rate > 0.0 else None
         it = new
         history.append(it.rho)
-    return _result(prob, state_prev, it, n_iter, history, rescues)
+    return _result(prob, state_prev, it, n_iter, history, rescues, n_factor)
 
 
 class _Rescued(NamedTuple):
@@ -384,6 +398,7 @@ def _result(
     n_iter: int,
     history: list[float],
     rescues: int,
+    n_factor: int,
 ) -> IncrementResult:
     status = it.law.status
     dw = it.w - prev.w
@@ -402,6 +417,7 @@ def _result(
         normal_work=normal_work,
         dissipation=dissipation,
         rescues=rescues,
+        factorizations=n_factor,
     )
 
 

@@ -107,16 +107,32 @@ def _ratio(num: float, ref: float) -> float:
     return 0.0 if num == 0.0 else num / max(ref, np.finfo(float).tiny)
 
 
+class Factor(NamedTuple):
+    """LU factors of a reduced matrix and the unknown layout they belong to.
+
+    Attributes:
+        keys: Global slot ``3 i + slot`` of every reduced unknown, shape (n_q,), int64.
+        lu: ``scipy.linalg.lu_factor`` output for ``Jᵀ`` (solve with ``trans=1``).
+    """
+
+    keys: npt.NDArray[np.int64]
+    lu: tuple[FloatArray, npt.NDArray[np.int32]]
+
+
 class Step(NamedTuple):
     """A Newton direction.
 
     Attributes:
         dp: Force increment, shape (m, 3), float64 [N].
         alpha_new: Full-step rigid amplitudes (minimum norm), shape (k,), float64.
+        factor: Factorisation used (new, or the reused one of a chord step).
+        reused: Whether ``factor`` was reused (chord step) rather than computed.
     """
 
     dp: FloatArray
     alpha_new: FloatArray
+    factor: Factor | None
+    reused: bool
 
 
 def newton_step(
@@ -126,8 +142,13 @@ def newton_step(
     cut: float,
     *,
     force_closed: npt.NDArray[np.bool_] | None = None,
+    reuse: Factor | None = None,
 ) -> Step | None:
     """Solve the reduced generalised-Newton system; None if it is singular.
+
+    If ``reuse`` has the same unknown layout as this iterate, its stale factors replace
+    the Jacobian (a chord step: exact residual, approximate matrix, no factorisation);
+    the caller decides when that is good enough.
 
     Open points flagged in ``force_closed`` are treated as closed and frictionless (a
     bilateral predictor that lets a floating body that touches nothing find contact).
@@ -144,6 +165,7 @@ def newton_step(
         r: Augmentation per point, shape (m,), float64 [N/mm].
         cut: Absolute singular-value cut of the rigid-body Schur complement.
         force_closed: Points to close if open, shape (m,), bool (default none).
+        reuse: Factors of an earlier step to reuse when the layout matches.
 
     Returns:
         The full Newton step, or None if the reduced matrix is numerically singular.
@@ -183,18 +205,24 @@ def newton_step(
     own[is_slip, 1] = -np.sum(it.C[sl, 1:] * v_s, axis=1) / r[sl]
     Ws = prob.W @ s.ravel()  # (3m,)
     b = own[keep] - R @ Ws
-    J = _columns_times_t(R @ prob.W, closed, keep, is_slip, prob.mu * u_s, v_s)
-    q_slip = (np.cumsum(keep.ravel()) - 1).reshape(-1, 3)[is_slip, 1]
-    J[q_slip, q_slip] += (1.0 - k_s) / r[sl]
     Jalpha = R @ prob.G  # (n_q, k)
     H = (T.T @ prob.G).T  # (k, n_q)
     b = b + Jalpha @ it.alpha
     h = prob.e - prob.G.T @ (it.p + s).ravel()
-
-    dq, alpha_new = _solve_bordered(J, Jalpha, H, b, h, cut)
-    if dq is None:
+    point, slot = np.nonzero(keep)
+    keys = 3 * closed[point] + slot
+    reused = reuse is not None and np.array_equal(reuse.keys, keys)
+    if reuse is not None and reused:
+        factor: Factor | None = reuse
+    else:
+        J = _columns_times_t(R @ prob.W, closed, keep, is_slip, prob.mu * u_s, v_s)
+        q_slip = (np.cumsum(keep.ravel()) - 1).reshape(-1, 3)[is_slip, 1]
+        J[q_slip, q_slip] += (1.0 - k_s) / r[sl]
+        factor = _factor(J, keys)
+    if factor is None:
         return None
-    return Step(s + (T @ dq).reshape(-1, 3), alpha_new)
+    dq, alpha_new = _solve_bordered(factor, Jalpha, H, b, h, cut)
+    return Step(s + (T @ dq).reshape(-1, 3), alpha_new, factor, reused)
 
 
 def _columns_times_t(
@@ -249,35 +277,42 @@ def _slot_operators(
     return T, R
 
 
-def _solve_bordered(
-    J: FloatArray,
-    Jalpha: FloatArray,
-    H: FloatArray,
-    b: FloatArray,
-    h: FloatArray,
-    cut: float,
-) -> tuple[FloatArray | None, FloatArray]:
-    """Solve ``J x + Jα a = b, H x = h`` with min-norm ``a``; ``(None, ·)`` if J singular.
-
-    Singular values of the k×k Schur complement ``S = H J⁻¹ Jα`` below ``cut`` are
-    treated as zero (undetermined rigid directions get no component of ``a``).
-    """
-    k = Jalpha.shape[1]
+def _factor(J: FloatArray, keys: npt.NDArray[np.int64]) -> Factor | None:
+    """LU-factor ``J`` (destroyed); None if it is numerically singular."""
     if J.shape[0] == 0:
-        return np.zeros(0), np.zeros(k)
+        return Factor(keys, (np.zeros((0, 0)), np.zeros(0, dtype=np.int32)))
     with warnings.catch_warnings():
         warnings.simplefilter("error", sla.LinAlgWarning)
         try:
             # J is C-ordered, so J.T is Fortran-ordered: LAPACK factors Jᵀ in place.
             lu = sla.lu_factor(J.T, overwrite_a=True, check_finite=False)
         except sla.LinAlgWarning:
-            return None, np.zeros(k)
+            return None
     diag = np.abs(np.diag(lu[0]))
     if not np.all(np.isfinite(diag)) or diag.min() <= 1e3 * np.finfo(float).eps * diag.max():
-        return None, np.zeros(k)
+        return None
+    return Factor(keys, lu)
+
+
+def _solve_bordered(
+    factor: Factor,
+    Jalpha: FloatArray,
+    H: FloatArray,
+    b: FloatArray,
+    h: FloatArray,
+    cut: float,
+) -> tuple[FloatArray, FloatArray]:
+    """Solve ``J x + Jα a = b, H x = h`` with min-norm ``a``, J given by its factors.
+
+    Singular values of the k×k Schur complement ``S = H J⁻¹ Jα`` below ``cut`` are
+    treated as zero (undetermined rigid directions get no component of ``a``).
+    """
+    k = Jalpha.shape[1]
+    if len(factor.keys) == 0:
+        return np.zeros(0), np.zeros(k)
     if k == 0:
-        return sla.lu_solve(lu, b, trans=1, check_finite=False), np.zeros(0)
-    Y = sla.lu_solve(lu, np.column_stack([b, Jalpha]), trans=1, check_finite=False)
+        return sla.lu_solve(factor.lu, b, trans=1, check_finite=False), np.zeros(0)
+    Y = sla.lu_solve(factor.lu, np.column_stack([b, Jalpha]), trans=1, check_finite=False)
     U, sv, Vt = np.linalg.svd(H @ Y[:, 1:])  # Schur complement S, (k, k)
     good = sv > max(cut, float(sv[0]) * np.finfo(float).eps * k)
     coef = (U[:, good].T @ (H @ Y[:, 0] - h)) / sv[good]
