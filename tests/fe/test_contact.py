@@ -392,3 +392,15 @@ def test_frictionless_load_cycle_returns_to_zero_displacement():
     u_max = max(np.max(np.abs(h[2])) for h in hist)
     np.testing.assert_allclose(hist[-1][3].state.p, 0.0, atol=CMP * p_max)
     np.testing.assert_allclose(hist[-1][2], 0.0, atol=CMP * u_max)
+
+
+def test_chord_steps_save_factorisations_without_changing_the_solution():
+    W, (w1, w2) = frictional_case(m=20, seed=5)
+    path = [w1 + (w2 - w1) * t for t in np.linspace(0.0, 1.0, 15)]
+    chord = run_history(W, path, ContactSettings(mu=0.3))
+    fresh = run_history(W, path, ContactSettings(mu=0.3, chord_rate=0.0))
+    for a, b in zip(chord, fresh, strict=True):
+        np.testing.assert_allclose(a.state.p, b.state.p, atol=CMP * np.max(np.abs(b.state.p)))
+        assert a.residuals[-1] <= ContactSettings().tol
+    assert all(r.factorizations == r.iterations for r in fresh)
+    assert sum(r.factorizations for r in chord) < sum(r.factorizations for r in fresh)
