@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/hingelab mesh --out $(OUT)
+	$(BIN)/hingelab cycle --out $(OUT)
 
 # pytest exits 5 when it collected no test: that must fail, not pass silently.
 test: $(STAMP)

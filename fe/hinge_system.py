@@ -240,7 +240,25 @@ class HingeSystem:
     u_grip: FloatArray
     lug_factor: Factorization
     pin_factor: Factorization
+    slave_nodes: IntArray
+    master_nodes: IntArray
     timings_s: dict[str, float] = field(default_factory=dict)
+    _compliance: dict[str, FloatArray] = field(default_factory=dict, repr=False)
+
+    def nodal_compliance(self) -> tuple[FloatArray, FloatArray]:
+        """Return the compliances at the slave and master nodes, computed once and kept.
+
+        ``S_slave = K_P⁻¹`` restricted to the DOFs of all slave nodes (pin supported 3-2-1)
+        and ``S_master = K_L⁻¹`` restricted to the DOFs of all master nodes, shapes
+        (3 n_s, 3 n_s) and (3 n_m, 3 n_m) [mm/N]. They depend on the mesh only, so every
+        configuration, amplitude and friction coefficient reuses them.
+        """
+        if not self._compliance:
+            t0 = time.perf_counter()
+            self._compliance["slave"] = _restricted_inverse(self.pin_factor, self.pin_free, _dofs(self.slave_nodes))
+            self._compliance["master"] = _restricted_inverse(self.lug_factor, self.lug_free, _dofs(self.master_nodes))
+            self.timings_s["compliance"] = time.perf_counter() - t0
+        return self._compliance["slave"], self._compliance["master"]
 
     @property
     def n_dof(self) -> int:
@@ -282,8 +300,30 @@ def build_system(mesh: HexMesh, kind: ElementType = ElementType.INCOMPATIBLE) ->
     pin_factor = Factorization(K[pin_free][:, pin_free])
     t_fac = time.perf_counter() - t1
     logger.info("assembled %d DOF in %.2f s, factorised in %.2f s", n_dof, t_asm, t_fac)
+    contact_pairs = [p for p in mesh.pairs if p.kind.value == "contact"]
+    slave_nodes = np.unique(np.concatenate([mesh.set_nodes(p.slave) for p in contact_pairs]))
+    master_nodes = np.unique(np.concatenate([mesh.set_nodes(p.master) for p in contact_pairs]))
     return HingeSystem(mesh, K, lug_free, pin_free, support, R, u_grip, lug_factor, pin_factor,
-                       {"assembly": t_asm, "factorisation": t_fac})
+                       slave_nodes, master_nodes, {"assembly": t_asm, "factorisation": t_fac})
+
+
+def _restricted_inverse(factor: Factorization, free: IntArray, dofs: IntArray) -> FloatArray:
+    """Return (K_ff⁻¹)[dofs, dofs], shape (n, n), with zero rows/columns at supported DOFs.
+
+    Solved by blocks of ``BLOCK_RHS`` unit right-hand sides.
+    """
+    pos = np.full(int(max(free.max(), dofs.max())) + 1, -1, dtype=np.int64)
+    pos[free] = np.arange(len(free))
+    local = pos[dofs]  # -1 where the DOF is supported (zero displacement)
+    active = np.flatnonzero(local >= 0)
+    out = np.zeros((len(dofs), len(dofs)))
+    for j in range(0, len(active), BLOCK_RHS):
+        cols = active[j : j + BLOCK_RHS]
+        B = np.zeros((len(free), len(cols)))
+        B[local[cols], np.arange(len(cols))] = 1.0
+        X = factor.solve(B)
+        out[np.ix_(active, cols)] = X[local[active]]
+    return 0.5 * (out + out.T)
 
 
 @dataclass(frozen=True)
@@ -307,26 +347,29 @@ class Condensed:
     wall_s: float
 
 
-def _compliance(C_sub: sp.csr_matrix, factor: Factorization) -> FloatArray:
-    """Return C_sub K⁻¹ C_subᵀ by blocks of right-hand sides, shape (3m, 3m)."""
-    Ct = C_sub.T.tocsc()
-    out = np.zeros((C_sub.shape[0], C_sub.shape[0]))
-    for j in range(0, Ct.shape[1], BLOCK_RHS):
-        cols = slice(j, min(j + BLOCK_RHS, Ct.shape[1]))
-        X = factor.solve(Ct[:, cols].toarray())
-        out[:, cols] = C_sub @ X
-    return 0.5 * (out + out.T)
+def _columns(C: sp.csr_matrix, nodes: IntArray) -> sp.csr_matrix:
+    """Columns of C at the DOFs of ``nodes``, shape (3m, 3 len(nodes))."""
+    return C[:, _dofs(nodes)]
 
 
 def condense(system: HingeSystem, geo: ContactGeometry) -> Condensed:
-    """Condense the hinge on the contact points of a configuration."""
+    """Condense the hinge on the contact points of a configuration.
+
+    ``W = C_s S_slave C_sᵀ + C_m S_master C_mᵀ`` with the mesh's nodal compliances
+    (computed once per mesh) and this configuration's local operators.
+    """
     t0 = time.perf_counter()
+    S_slave, S_master = system.nodal_compliance()
+    t1 = time.perf_counter()
     C = contact_operator(geo, system.n_dof)
-    W = _compliance(C[:, system.lug_free], system.lug_factor)
-    W += _compliance(C[:, system.pin_free], system.pin_factor)
+    Cs = _columns(C, system.slave_nodes)
+    Cm = _columns(C, system.master_nodes)
+    W = np.asarray(Cs @ (Cs @ S_slave).T) + np.asarray(Cm @ (Cm @ S_master).T)
+    W = 0.5 * (W + W.T)
     G = np.column_stack([C @ system.pin_R, C @ system.u_grip])
     w0 = np.column_stack([geo.g0, np.zeros((len(geo.g0), 2))])
-    return Condensed(geo, C, W, G, w0, time.perf_counter() - t0)
+    del t0
+    return Condensed(geo, C, W, G, w0, time.perf_counter() - t1)
 
 
 def displacement(system: HingeSystem, cond: Condensed, p: FloatArray, alpha: FloatArray) -> FloatArray:

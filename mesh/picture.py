@@ -40,7 +40,10 @@ def write_mesh_png(mesh: HexMesh, path: Path, *, title: str = "") -> Path:
         The path written.
     """
     import pyvista as pv
+    from vtkmodules.vtkCommonCore import vtkLogger
 
+    # Off-screen rendering needs no X server; VTK still says so on stderr. Silence it.
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
     extent = np.ptp(np.asarray(mesh.nodes), axis=0)
     contact = [n for n in mesh.facet_sets if n in mesh.surfaces]
     plotter = pv.Plotter(off_screen=True, shape=(1, 2), window_size=(1800, 800))

@@ -1,0 +1,128 @@
+"""Files of a hysteresis cycle: loop CSV and PNG, ParaView time series (.pvd + .vtu)."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import meshio
+import numpy as np
+
+from fe.assembly import stress_field
+from fe.cycle import CycleResult
+from fe.element import ElementType, von_mises
+from fe.hinge_system import HingeSystem, displacement
+
+LOOP_COLUMNS = ("force_N", "displacement_mm", "stage", "increment", "side")
+"""Columns of loop.csv; the first two are those of a measured loop."""
+
+
+def write_loop_csv(result: CycleResult, path: Path, *, with_free_play: bool = False) -> Path:
+    """Write the loop: force [N] and grip displacement [mm], one row per increment."""
+    F, d, stage = result.loop_arrays(with_free_play=with_free_play)
+    side = [1] + [i.side for i in result.increments]
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(LOOP_COLUMNS)
+        for k in range(len(F)):
+            w.writerow([f"{F[k]:.9g}", f"{d[k]:.9g}", int(stage[k]), k, side[k]])
+    return path
+
+
+def write_loop_png(result: CycleResult, path: Path, *, title: str = "") -> Path:
+    """Plot the loop with the free play removed (left) and, if there is any, with it (right)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    m = result.metrics()
+    play = result.free_play_mm > 0
+    fig, axes = plt.subplots(1, 2 if play else 1, figsize=(13 if play else 7.5, 5.5), squeeze=False)
+    ax = axes[0, 0]
+    F, d, stage = result.loop_arrays()
+    names = ["0 → +Fg (initial)"] + [("+Fg → −Fg" if s % 2 else "−Fg → +Fg") for s in range(1, stage.max() + 1)]
+    for s in range(stage.max() + 1):
+        sel = np.flatnonzero(stage == s)
+        if s > 0:
+            sel = np.concatenate([[sel[0] - 1], sel])
+        ax.plot(d[sel] * 1e3, F[sel], "-o", ms=2.5, lw=1.4, label=f"stage {s}: {names[s]}")
+    dm = m["delta_max_mm"] * 1e3
+    ax.plot([0, dm], [0, result.settings.amplitude_n], "k--", lw=0.8,
+            label="U_max = ½·Fg·δ_max, δ_max = (δ(+Fg) − δ(−Fg))/2")
+    ax.axhline(0, color="k", lw=0.5)
+    ax.axvline(0, color="k", lw=0.5)
+    ax.set_xlabel("grip displacement δ [µm], free play removed")
+    ax.set_ylabel("force F [N]")
+    ax.set_title(title or "hysteresis loop")
+    ax.legend(loc="upper left", fontsize=8, title=f"η = {m['eta']:.4f},  W = {m['W_cycle_Nmm']:.4g} N·mm",
+              title_fontsize=9)
+    ax.grid(alpha=0.3)
+    if play:
+        ax2 = axes[0, 1]
+        _, d_raw, _ = result.loop_arrays(with_free_play=True)
+        side = np.array([1] + [i.side for i in result.increments])
+        xs, ys = [d_raw[0]], [F[0]]
+        for k in range(1, len(F)):
+            if side[k] != side[k - 1]:  # the free-play traverse happens at F = 0
+                xs.append(side[k] * result.free_play_mm / 2)
+                ys.append(0.0)
+            xs.append(d_raw[k])
+            ys.append(F[k])
+        ax2.plot(np.asarray(xs) * 1e3, ys, "-", color="grey", lw=1.2)
+        ax2.axhline(0, color="k", lw=0.5)
+        ax2.set_xlabel("grip displacement [µm], with the free play 4Δr")
+        ax2.set_ylabel("force F [N]")
+        ax2.set_title(f"as a test machine sees it: free play {result.free_play_mm * 1e3:.0f} µm at F ≈ 0")
+        ax2.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+def write_time_series(
+    system: HingeSystem, result: CycleResult, folder: Path, *, every: int = 1,
+    kind: ElementType = ElementType.INCOMPATIBLE,
+) -> Path:
+    """Write a ParaView time series: one .vtu per written increment and a .pvd index.
+
+    Point data: ``displacement`` [mm], ``contact_pressure`` [MPa] and ``slip`` [mm]
+    (tangential relative displacement since the start of the configuration) on the
+    pin's contact nodes. Cell data: ``stress`` (Voigt, [MPa]), ``von_mises`` [MPa], ``part``.
+    The time value is the increment index; ``force_N`` is stored as field data.
+
+    Returns:
+        The .pvd file.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    mesh = system.mesh
+    chosen = [k for k in range(len(result.increments)) if k % every == 0 or k == len(result.increments) - 1]
+    entries = []
+    for k in chosen:
+        inc, state = result.increments[k], result.states[k]
+        cond = result.configs[inc.side]
+        u = displacement(system, cond, np.asarray(state.p), np.asarray(state.alpha))
+        sigma = stress_field(mesh, u, kind)
+        pressure = np.zeros(mesh.n_nodes)
+        slip = np.zeros(mesh.n_nodes)
+        pressure[cond.geo.slave] = state.p[:, 0] / cond.geo.area_mm2
+        slip[cond.geo.slave] = np.linalg.norm(state.w[:, 1:] - cond.w0[:, 1:], axis=1)
+        name = f"step_{k:04d}.vtu"
+        meshio.write(
+            folder / name,
+            meshio.Mesh(
+                np.asarray(mesh.nodes), [("hexahedron", mesh.hexes)],
+                point_data={"displacement": u, "contact_pressure": pressure, "slip": slip},
+                cell_data={"stress": [sigma], "von_mises": [von_mises(sigma)], "part": [mesh.elem_part]},
+            ),
+            binary=True,
+        )
+        entries.append(f'    <DataSet timestep="{k + 1}" part="0" file={quoteattr(name)}/>')
+    pvd = folder / "cycle.pvd"
+    pvd.write_text(
+        '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
+        + "\n".join(entries) + "\n  </Collection>\n</VTKFile>\n"
+    )
+    return pvd

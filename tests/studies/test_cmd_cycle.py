@@ -1,0 +1,44 @@
+"""``hingelab cycle`` end to end on a coarse mesh: files, JSON keys, clear errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from studies.cli import main
+
+pytest.importorskip("gmsh")
+COARSE = ["--size", "4", "--contact-size", "2", "--increments", "6"]
+
+
+def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
+    argv = ["cycle", "--clearance", "0.05", "--amplitude", "300", "--mu", "0.15", *COARSE,
+            "--frames", "6", "--out", str(tmp_path), "--json", "--no-progress"]
+    assert main(argv) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("eta", "W_cycle_Nmm", "U_max_Nmm", "disp_at_peak_mm", "free_play_mm", "energy_balance_rel_err",
+                "n_dof", "n_contact_pairs", "wall_s", "timings_s"):
+        assert key in out, key
+    assert out["free_play_mm"] == pytest.approx(0.2)
+    assert out["energy_balance_rel_err"] < 0.02
+    assert {"factorisation", "condensation", "contact"} <= set(out["timings_s"])
+    with open(tmp_path / "loop.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert {"force_N", "displacement_mm"} <= set(rows[0])
+    assert max(float(r["force_N"]) for r in rows) == pytest.approx(300.0)
+    assert json.loads((tmp_path / "result.json").read_text())["eta"] == out["eta"]
+    pvd = (tmp_path / "fields" / "cycle.pvd").read_text()
+    assert pvd.count("<DataSet") >= 3
+    assert (tmp_path / "loop.png").read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [(["--amplitude", "-1"], "amplitude_n"), (["--mu", "-0.3"], "mu"), (["--hinge", "bearing"], "general only")],
+    ids=["negative-amplitude", "negative-mu", "bearing-not-yet"],
+)
+def test_cycle_bad_input(tmp_path, capsys, argv, needle):
+    assert main(["cycle", *argv, "--out", str(tmp_path), "--no-progress"]) == 1
+    assert needle in capsys.readouterr().err
