@@ -7,6 +7,10 @@ spherical gap profile. Load: normal preload P, then tangential Q: 0 → +Q → -
 Q = 0.8 μ P (partial slip with an annulus of slip). Run:
 
     .venv/bin/python benchmarks/bench_contact.py [--sizes 300 1000 1500] [--per-quarter 25]
+
+On a shared or small machine set OPENBLAS_NUM_THREADS=1: the reduced systems
+(n_q ≈ 3 n_stick + 2 n_slip ≲ 2000 here) gain little from threads and lose a lot to
+oversubscription. "peak MiB" is tracemalloc's peak during the cycle, excluding W itself.
 """
 
 from __future__ import annotations
