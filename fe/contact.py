@@ -27,12 +27,15 @@ slipping point's tangential force along the slip direction is eliminated
 (``p_t·u = μ p_n``), so each step factorises a dense system of size
 ``3 n_stick + 2 n_slip + n_frictionless`` (``+ k`` rigid amplitudes via a k×k Schur
 complement solved by least squares with ``rcond``, which gives the minimum-norm ``α``).
+While the unknown layout is unchanged and the iteration converges fast, the last LU
+factors are reused (chord steps: exact residual, stale matrix; see ``chord_rate``).
 Globalisation: Armijo backtracking on the merit ``φ = ½|C/r|² + ½|(Gᵀp - e)/r̄|²``.
 If no step ``>= min_step`` decreases ``φ`` (or the step matrix is singular) a rescue is
-taken, alternately (a) if some points are open, a full "bilateral predictor" step with
-the open points closed and frictionless (how a floating body that touches nothing finds
-contact), and (b) rescaling ``r`` by the next factor of ``RESCUE_FACTORS``, which changes
-the merit and the active-set path but not the solution. The line search keeps ``φ``
+taken, alternately (a) if some points are open, a full predictor step: floating bodies
+with unbalanced load are first moved rigidly to first contact and the touching points
+closed (without floating bodies all open points are closed), frictionless; this is how a
+floating pin in a clearance finds contact, and (b) rescaling ``r`` by the next factor of
+``RESCUE_FACTORS``, which changes the merit and the active-set path but not the solution. The line search keeps ``φ``
 monotone between rescues, so the plain Newton cycle between active sets cannot occur;
 the loop stops at ``max_iter`` with a ConvergenceError.
 
