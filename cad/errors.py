@@ -55,8 +55,9 @@ class DataError(HingelabError, ValueError):
     """Input data (a table or measurement file) is malformed; the message names file, row, column."""
 
 
-def check_range(name: str, value: float, lo: float, hi: float, *, lo_open: bool = False,
-                hi_open: bool = False) -> None:
+def check_range(
+    name: str, value: float, lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = False
+) -> None:
     """Raise ParameterError unless ``lo <= value <= hi`` (bounds optionally open).
 
     Args:

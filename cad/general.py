@@ -22,6 +22,7 @@ The paper does not give its hinge's dimensions.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -29,7 +30,7 @@ import build123d as bd
 
 from cad.errors import GeometryError, check_range
 from cad.materials import ALUMINIUM, STEEL_45, Material
-from cad.model import FaceRole, HingeModel, NamedFace, Part, PairKind, Slab, SurfacePair, Sweep
+from cad.model import FaceRole, HingeModel, NamedFace, PairKind, Part, Slab, SurfacePair, Sweep
 from cad.surfaces import Cylinder, Plane
 
 MIN_WALL_MM = 1.0
@@ -76,7 +77,9 @@ class GeneralHingeParams:
 
     def __post_init__(self) -> None:
         check_range("pin_radius_mm", self.pin_radius_mm, 0.5, 50.0)
-        check_range("lug_width_mm", self.lug_width_mm, 2 * (self.pin_radius_mm + MIN_WALL_MM), 500.0)
+        check_range(
+            "lug_width_mm", self.lug_width_mm, 2 * (self.pin_radius_mm + MIN_WALL_MM), 500.0
+        )
         max_clearance = self.lug_width_mm / 2 - self.pin_radius_mm - MIN_WALL_MM
         check_range("clearance_mm", self.clearance_mm, 0.0, max_clearance)
         check_range("tang_thickness_mm", self.tang_thickness_mm, 0.5, 200.0)
@@ -86,7 +89,12 @@ class GeneralHingeParams:
         check_range("clevis_length_mm", self.clevis_length_mm, self.lug_width_mm / 2 + 1.0, 1000.0)
         check_range("clevis_base_mm", self.clevis_base_mm, 1.0, 200.0)
         if self.pin_length_mm is not None:
-            check_range("pin_length_mm", self.pin_length_mm, self.span_mm, self.span_mm + 2 * MAX_OVERHANG_MM)
+            check_range(
+                "pin_length_mm",
+                self.pin_length_mm,
+                self.span_mm,
+                self.span_mm + 2 * MAX_OVERHANG_MM,
+            )
 
     @property
     def hole_radius_mm(self) -> float:
@@ -175,7 +183,9 @@ def _lug_profile(p: GeneralHingeParams, toward: float, length: float) -> tuple[b
     """
     half_w = p.lug_width_mm / 2
     align_x = bd.Align.MIN if toward > 0 else bd.Align.MAX
-    body = bd.Rectangle(length, p.lug_width_mm, align=(align_x, bd.Align.CENTER)) - bd.Circle(p.ring_radius_mm)
+    body = bd.Rectangle(length, p.lug_width_mm, align=(align_x, bd.Align.CENTER)) - bd.Circle(
+        p.ring_radius_mm
+    )
     end_starts = (90.0, 180.0) if toward > 0 else (270.0, 0.0)
     end = tuple(_quarter_annulus(p.ring_radius_mm, half_w, a) for a in end_starts)
     return (*_ring_faces(p.hole_radius_mm, p.ring_radius_mm), *end, _single_face(body, "lug body"))
@@ -195,7 +205,9 @@ def _extrude(faces: tuple[bd.Face, ...], z0: float, z1: float) -> bd.Part:
 def _checked(solid: bd.Part, name: str) -> bd.Solid:
     solids = solid.solids()
     if len(solids) != 1 or not solids[0].is_valid:
-        raise GeometryError(f"{name}: the kernel made {len(solids)} solid(s), valid={solid.is_valid}")
+        raise GeometryError(
+            f"{name}: the kernel made {len(solids)} solid(s), valid={solid.is_valid}"
+        )
     return solids[0]
 
 
@@ -234,7 +246,12 @@ def make_general_hinge(p: GeneralHingeParams) -> HingeModel:
 
     pin_levels = sorted({*z["pin"], *z["clevis_1"], *z["clevis_2"], *z["tang"]})
     parts = (
-        Part("tang", tang, p.lug_material, Sweep(tang_faces, (Slab(*z["tang"], tuple(range(len(tang_faces)))),))),
+        Part(
+            "tang",
+            tang,
+            p.lug_material,
+            Sweep(tang_faces, (Slab(*z["tang"], tuple(range(len(tang_faces)))),)),
+        ),
         Part(
             "clevis",
             clevis,
@@ -254,7 +271,7 @@ def make_general_hinge(p: GeneralHingeParams) -> HingeModel:
             p.pin_material,
             Sweep(
                 pin_faces,
-                tuple(Slab(a, b, tuple(range(5))) for a, b in zip(pin_levels, pin_levels[1:], strict=False)),
+                tuple(Slab(a, b, tuple(range(5))) for a, b in itertools.pairwise(pin_levels)),
             ),
         ),
     )
@@ -268,11 +285,15 @@ def _named_faces(p: GeneralHingeParams) -> dict[str, NamedFace]:
     tol = SURFACE_TOL_MM
     far = 1e6
 
-    def zbox(rng: tuple[float, float]) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    def zbox(
+        rng: tuple[float, float],
+    ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
         return ((-far, -far, rng[0] - tol), (far, far, rng[1] + tol))
 
     faces = [
-        NamedFace("tang_fixed", "tang", FaceRole.FIXED, Plane((-p.tang_length_mm, 0, 0), (-1, 0, 0))),
+        NamedFace(
+            "tang_fixed", "tang", FaceRole.FIXED, Plane((-p.tang_length_mm, 0, 0), (-1, 0, 0))
+        ),
         NamedFace(
             "clevis_load",
             "clevis",

@@ -92,11 +92,13 @@ class Sphere:
     def outward_normal(self, x: FloatArray) -> FloatArray:
         """Unit normal out of the ball, shape (n, 3)."""
         d = x - np.asarray(self.center, dtype=np.float64)
-        return d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+        out: FloatArray = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+        return out
 
     def distance_outside(self, x: FloatArray) -> FloatArray:
         """Signed distance [mm], positive outside the ball, shape (n,)."""
-        return np.linalg.norm(x - np.asarray(self.center, dtype=np.float64), axis=1) - self.radius_mm
+        r: FloatArray = np.linalg.norm(x - np.asarray(self.center, dtype=np.float64), axis=1)
+        return r - self.radius_mm
 
 
 @dataclass(frozen=True)

@@ -146,7 +146,9 @@ class CycleResult:
     configs: dict[int, Condensed] = field(repr=False)
     timings_s: dict[str, float] = field(default_factory=dict)
 
-    def loop_arrays(self, *, with_free_play: bool = False) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int64]]:
+    def loop_arrays(
+        self, *, with_free_play: bool = False
+    ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int64]]:
         """Return (force (n+1,) [N], displacement (n+1,) [mm], stage (n+1,)) starting at the origin.
 
         Args:
@@ -185,7 +187,7 @@ class CycleResult:
         Fg = self.settings.amplitude_n
         delta_max = 0.5 * (d_plus - d_minus)
         U = 0.5 * Fg * delta_max
-        incs = self.increments[sl.start:]  # increments after the loop's start point
+        incs = self.increments[sl.start :]  # increments after the loop's start point
         fric = sum(i.friction_work + i.normal_work for i in incs)
         dE = incs[-1].elastic_energy - self.increments[sl.start - 1].elastic_energy
         per_cycle = self.work_per_cycle()
@@ -196,14 +198,18 @@ class CycleResult:
             "delta_max_mm": delta_max,
             "disp_at_peak_mm": d_plus,
             "disp_at_minus_peak_mm": d_minus,
-            "secant_stiffness_N_per_mm": 2 * Fg / (d_plus - d_minus) if d_plus > d_minus else float("nan"),
+            "secant_stiffness_N_per_mm": 2 * Fg / (d_plus - d_minus)
+            if d_plus > d_minus
+            else float("nan"),
             "free_play_mm": self.free_play_mm,
             "friction_work_Nmm": fric,
             "elastic_energy_change_Nmm": dE,
             "energy_balance_rel_err": abs(W - dE - fric) / max(abs(W), 1e-300),
             "loop_closure_mm": float(x[-1] - x[0]),
             "W_change_last_two_cycles_rel": (
-                abs(per_cycle[-1] - per_cycle[-2]) / max(abs(per_cycle[-1]), 1e-300) if len(per_cycle) > 1 else float("nan")
+                abs(per_cycle[-1] - per_cycle[-2]) / max(abs(per_cycle[-1]), 1e-300)
+                if len(per_cycle) > 1
+                else float("nan")
             ),
             "reported_cycle": float(self.settings.n_cycles),
         }
@@ -280,36 +286,52 @@ def _run(
     side = 1
     cond = configs[side]
     first = settings.stages()[0]
-    state = seed_state(cond, stage_targets(*first, settings.grading)[0]) if clearance_mm > 0 else \
-        ContactState.initial(len(cond.geo.slave), 7, w=cond.w0)
+    state = (
+        seed_state(cond, stage_targets(*first, settings.grading)[0])
+        if clearance_mm > 0
+        else ContactState.initial(len(cond.geo.slave), 7, w=cond.w0)
+    )
     incs: list[Increment] = []
     states: list[ContactState] = []
     total = sum(n for _, _, n in settings.stages())
     t1 = time.perf_counter()
 
     def partial() -> CycleResult:
-        return CycleResult(settings, clearance_mm, tuple(incs), 4 * clearance_mm, tuple(states), configs,
-                           {"condensation": t_cond})
+        return CycleResult(
+            settings,
+            clearance_mm,
+            tuple(incs),
+            4 * clearance_mm,
+            tuple(states),
+            configs,
+            {"condensation": t_cond},
+        )
 
     f_prev = 0.0
     for stage, (f_from, f_to, n) in enumerate(settings.stages()):
         for target in stage_targets(f_from, f_to, n, settings.grading):
             if clearance_mm > 0 and f_prev * target < 0:  # crossing zero: the pin changes sides
-                state, res = _advance(cond, state, f_prev, 0.0, contact, settings, len(incs), partial)
+                state, res = _advance(
+                    cond, state, f_prev, 0.0, contact, settings, len(incs), partial
+                )
                 incs.append(_record(stage, 0.0, side, res, cond))
                 states.append(state)
                 side = -side
                 cond = configs[side]
                 state = seed_state(cond, float(target))
                 f_prev = 0.0
-            state, res = _advance(cond, state, f_prev, float(target), contact, settings, len(incs), partial)
+            state, res = _advance(
+                cond, state, f_prev, float(target), contact, settings, len(incs), partial
+            )
             incs.append(_record(stage, float(target), side, res, cond))
             states.append(state)
             f_prev = float(target)
             if progress is not None:
                 progress(min(len(incs), total), total)
     result = partial()
-    object.__setattr__(result, "timings_s", {"condensation": t_cond, "contact": time.perf_counter() - t1})
+    object.__setattr__(
+        result, "timings_s", {"condensation": t_cond, "contact": time.perf_counter() - t1}
+    )
     return result
 
 
@@ -341,7 +363,7 @@ def seed_state(cond: Condensed, force_n: float) -> ContactState:
     x = np.linalg.lstsq(A, b, rcond=1e-12)[0]
     p = np.zeros((m, 3))
     p[touching, 0] = np.maximum(x[: touching.size], 0.0)
-    return ContactState(p, cond.w0, state0.status, x[touching.size:])
+    return ContactState(p, cond.w0, state0.status, x[touching.size :])
 
 
 def _advance(
@@ -377,7 +399,9 @@ def _advance(
             return s, _summed(res, works, iters)
         except ConvergenceError as err:
             last = err
-            logger.warning("increment %d (F %.4g → %.4g N) failed, cutting back: %s", index, f_from, f_to, err)
+            logger.warning(
+                "increment %d (F %.4g → %.4g N) failed, cutting back: %s", index, f_from, f_to, err
+            )
     raise ConvergenceError(
         f"increment {index} (F {f_from:.4g} → {f_to:.4g} N) failed after {settings.max_cutbacks} cut-backs",
         increment=index,
@@ -391,10 +415,14 @@ def _summed(res: IncrementResult, works: FloatArray, iters: int) -> IncrementRes
     """Return ``res`` with per-point works replaced by sub-step totals (kept as length-1 arrays)."""
     from dataclasses import replace
 
-    return replace(res, friction_work=np.array([works[0]]), normal_work=np.array([works[1]]), iterations=iters)
+    return replace(
+        res, friction_work=np.array([works[0]]), normal_work=np.array([works[1]]), iterations=iters
+    )
 
 
-def _record(stage: int, force: float, side: int, res: IncrementResult, cond: Condensed) -> Increment:
+def _record(
+    stage: int, force: float, side: int, res: IncrementResult, cond: Condensed
+) -> Increment:
     p = np.ravel(res.state.p)
     return Increment(
         stage=stage,
@@ -414,4 +442,3 @@ def _record(stage: int, force: float, side: int, res: IncrementResult, cond: Con
 def grip_force(cond: Condensed, p: FloatArray) -> float:
     """Force the grip applies to the clevis, from the contact forces [N] (= F at equilibrium)."""
     return float(-cond.G[:, 6] @ np.ravel(p))
-

@@ -84,7 +84,8 @@ class ContactGeometry:
 def _bilinear(xi: FloatArray, eta: FloatArray) -> FloatArray:
     """Quad shape functions at (xi, eta), shape (n, 4), counter-clockwise node order."""
     return 0.25 * np.stack(
-        [(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta), (1 - xi) * (1 + eta)], axis=1
+        [(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta), (1 - xi) * (1 + eta)],
+        axis=1,
     )
 
 
@@ -126,15 +127,25 @@ def project_on_facets(
             r = np.einsum("mn,mni->mi", N, x) - points
             a1 = np.einsum("mn,mni->mi", dxi, x)
             a2 = np.einsum("mn,mni->mi", deta, x)
-            A = np.stack([np.stack([(a1 * a1).sum(1), (a1 * a2).sum(1)], 1),
-                          np.stack([(a1 * a2).sum(1), (a2 * a2).sum(1)], 1)], 1)  # (m, 2, 2)
+            A = np.stack(
+                [
+                    np.stack([(a1 * a1).sum(1), (a1 * a2).sum(1)], 1),
+                    np.stack([(a1 * a2).sum(1), (a2 * a2).sum(1)], 1),
+                ],
+                1,
+            )  # (m, 2, 2)
             b = -np.stack([(r * a1).sum(1), (r * a2).sum(1)], 1)
             s = s + np.linalg.solve(A, b[..., None])[..., 0]
         N = _bilinear(s[:, 0], s[:, 1])
         d = np.linalg.norm(np.einsum("mn,mni->mi", N, x) - points, axis=1)
         out = np.maximum(np.abs(s).max(axis=1) - 1.0, 0.0)
         better = (out < best_out - 1e-12) | ((np.abs(out - best_out) <= 1e-12) & (d < best_d))
-        best_f[better], best_x[better], best_d[better], best_out[better] = f[better], s[better], d[better], out[better]
+        best_f[better], best_x[better], best_d[better], best_out[better] = (
+            f[better],
+            s[better],
+            d[better],
+            out[better],
+        )
     if np.any(best_out > 1e-6):
         i = int(np.argmax(best_out))
         raise MeshQualityError(
@@ -161,7 +172,9 @@ def contact_geometry(mesh: HexMesh, shift_mm: dict[str, FloatArray]) -> ContactG
             continue
         master = mesh.surfaces[pair.master]
         if not isinstance(master, Cylinder):
-            raise ParameterError(f"pair {pair.name!r}: master surface must be a Cylinder, got {type(master).__name__}")
+            raise ParameterError(
+                f"pair {pair.name!r}: master surface must be a Cylinder, got {type(master).__name__}"
+            )
         ids, area, _ = mesh.nodal_areas(pair.slave)
         x = np.asarray(mesh.nodes)[ids] + shift_mm[pair.name]  # (m, 3) slave in this configuration
         g0 = master.distance_outside(x)
@@ -173,10 +186,19 @@ def contact_geometry(mesh: HexMesh, shift_mm: dict[str, FloatArray]) -> ContactG
         foot = x + g0[:, None] * n  # closest point on the exact master surface
         facets = mesh.facet_sets[pair.master]
         f, s, _ = project_on_facets(foot, np.asarray(mesh.nodes), facets)
-        parts.append((ids, np.full(len(ids), ip), np.stack([n, t1, t2], axis=1), g0, facets[f],
-                      _bilinear(s[:, 0], s[:, 1]), area))
+        parts.append(
+            (
+                ids,
+                np.full(len(ids), ip),
+                np.stack([n, t1, t2], axis=1),
+                g0,
+                facets[f],
+                _bilinear(s[:, 0], s[:, 1]),
+                area,
+            )
+        )
     cols = list(zip(*parts, strict=True))
-    return ContactGeometry(*(np.concatenate(c) for c in cols))  # type: ignore[arg-type]
+    return ContactGeometry(*(np.concatenate(c) for c in cols))
 
 
 def contact_operator(geo: ContactGeometry, n_dof: int) -> sp.csr_matrix:
@@ -192,8 +214,13 @@ def contact_operator(geo: ContactGeometry, n_dof: int) -> sp.csr_matrix:
     cols_m = np.broadcast_to(cols_m, (m, 3, 4, 3))
     rows_m = np.broadcast_to(np.arange(3 * m).reshape(m, 3)[:, :, None, None], (m, 3, 4, 3))
     C = sp.coo_matrix(
-        (np.concatenate([vals_s.ravel(), vals_m.ravel()]),
-         (np.concatenate([rows.ravel(), rows_m.ravel()]), np.concatenate([cols_s.ravel(), cols_m.ravel()]))),
+        (
+            np.concatenate([vals_s.ravel(), vals_m.ravel()]),
+            (
+                np.concatenate([rows.ravel(), rows_m.ravel()]),
+                np.concatenate([cols_s.ravel(), cols_m.ravel()]),
+            ),
+        ),
         shape=(3 * m, n_dof),
     )
     return C.tocsr()
@@ -255,8 +282,12 @@ class HingeSystem:
         """
         if not self._compliance:
             t0 = time.perf_counter()
-            self._compliance["slave"] = _restricted_inverse(self.pin_factor, self.pin_free, _dofs(self.slave_nodes))
-            self._compliance["master"] = _restricted_inverse(self.lug_factor, self.lug_free, _dofs(self.master_nodes))
+            self._compliance["slave"] = _restricted_inverse(
+                self.pin_factor, self.pin_free, _dofs(self.slave_nodes)
+            )
+            self._compliance["master"] = _restricted_inverse(
+                self.lug_factor, self.lug_free, _dofs(self.master_nodes)
+            )
             self.timings_s["compliance"] = time.perf_counter() - t0
         return self._compliance["slave"], self._compliance["master"]
 
@@ -286,7 +317,10 @@ def build_system(mesh: HexMesh, kind: ElementType = ElementType.INCOMPATIBLE) ->
     x = np.asarray(mesh.nodes)[pin_nodes]
     lo, hi = x[:, 2].min(), x[:, 2].max()
     r = float(np.hypot(x[:, 0], x[:, 1]).max())
-    near = lambda p: int(pin_nodes[np.argmin(np.linalg.norm(x - np.asarray(p), axis=1))])  # noqa: E731
+
+    def near(p: tuple[float, float, float]) -> int:
+        return int(pin_nodes[np.argmin(np.linalg.norm(x - np.asarray(p), axis=1))])
+
     a, b, c = near((0, 0, lo)), near((0, 0, hi)), near((r, 0, lo))
     support = np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * c + 1], dtype=np.int64)
     pin_free = np.setdiff1d(_dofs(pin_nodes), support)
@@ -303,8 +337,20 @@ def build_system(mesh: HexMesh, kind: ElementType = ElementType.INCOMPATIBLE) ->
     contact_pairs = [p for p in mesh.pairs if p.kind.value == "contact"]
     slave_nodes = np.unique(np.concatenate([mesh.set_nodes(p.slave) for p in contact_pairs]))
     master_nodes = np.unique(np.concatenate([mesh.set_nodes(p.master) for p in contact_pairs]))
-    return HingeSystem(mesh, K, lug_free, pin_free, support, R, u_grip, lug_factor, pin_factor,
-                       slave_nodes, master_nodes, {"assembly": t_asm, "factorisation": t_fac})
+    return HingeSystem(
+        mesh,
+        K,
+        lug_free,
+        pin_free,
+        support,
+        R,
+        u_grip,
+        lug_factor,
+        pin_factor,
+        slave_nodes,
+        master_nodes,
+        {"assembly": t_asm, "factorisation": t_fac},
+    )
 
 
 def _restricted_inverse(factor: Factorization, free: IntArray, dofs: IntArray) -> FloatArray:
@@ -372,7 +418,9 @@ def condense(system: HingeSystem, geo: ContactGeometry) -> Condensed:
     return Condensed(geo, C, W, G, w0, time.perf_counter() - t1)
 
 
-def displacement(system: HingeSystem, cond: Condensed, p: FloatArray, alpha: FloatArray) -> FloatArray:
+def displacement(
+    system: HingeSystem, cond: Condensed, p: FloatArray, alpha: FloatArray
+) -> FloatArray:
     """Recover the nodal displacement field, shape (n_nodes, 3) [mm].
 
     Args:

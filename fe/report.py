@@ -42,22 +42,33 @@ def write_loop_png(result: CycleResult, path: Path, *, title: str = "") -> Path:
     fig, axes = plt.subplots(1, 2 if play else 1, figsize=(13 if play else 7.5, 5.5), squeeze=False)
     ax = axes[0, 0]
     F, d, stage = result.loop_arrays()
-    names = ["0 → +Fg (initial)"] + [("+Fg → −Fg" if s % 2 else "−Fg → +Fg") for s in range(1, stage.max() + 1)]
+    names = ["0 → +Fg (initial)"] + [
+        ("+Fg → −Fg" if s % 2 else "−Fg → +Fg") for s in range(1, stage.max() + 1)
+    ]
     for s in range(stage.max() + 1):
         sel = np.flatnonzero(stage == s)
         if s > 0:
             sel = np.concatenate([[sel[0] - 1], sel])
         ax.plot(d[sel] * 1e3, F[sel], "-o", ms=2.5, lw=1.4, label=f"stage {s}: {names[s]}")
     dm = m["delta_max_mm"] * 1e3
-    ax.plot([0, dm], [0, result.settings.amplitude_n], "k--", lw=0.8,
-            label="U_max = ½·Fg·δ_max, δ_max = (δ(+Fg) − δ(−Fg))/2")
+    ax.plot(
+        [0, dm],
+        [0, result.settings.amplitude_n],
+        "k--",
+        lw=0.8,
+        label="U_max = ½·Fg·δ_max, δ_max = (δ(+Fg) − δ(−Fg))/2",
+    )
     ax.axhline(0, color="k", lw=0.5)
     ax.axvline(0, color="k", lw=0.5)
     ax.set_xlabel("grip displacement δ [µm], free play removed")
     ax.set_ylabel("force F [N]")
     ax.set_title(title or "hysteresis loop")
-    ax.legend(loc="upper left", fontsize=8, title=f"η = {m['eta']:.4f},  W = {m['W_cycle_Nmm']:.4g} N·mm",
-              title_fontsize=9)
+    ax.legend(
+        loc="upper left",
+        fontsize=8,
+        title=f"η = {m['eta']:.4f},  W = {m['W_cycle_Nmm']:.4g} N·mm",
+        title_fontsize=9,
+    )
     ax.grid(alpha=0.3)
     if play:
         ax2 = axes[0, 1]
@@ -74,7 +85,9 @@ def write_loop_png(result: CycleResult, path: Path, *, title: str = "") -> Path:
         ax2.axhline(0, color="k", lw=0.5)
         ax2.set_xlabel("grip displacement [µm], with the free play 4Δr")
         ax2.set_ylabel("force F [N]")
-        ax2.set_title(f"as a test machine sees it: free play {result.free_play_mm * 1e3:.0f} µm at F ≈ 0")
+        ax2.set_title(
+            f"as a test machine sees it: free play {result.free_play_mm * 1e3:.0f} µm at F ≈ 0"
+        )
         ax2.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
@@ -83,7 +96,11 @@ def write_loop_png(result: CycleResult, path: Path, *, title: str = "") -> Path:
 
 
 def write_time_series(
-    system: HingeSystem, result: CycleResult, folder: Path, *, every: int = 1,
+    system: HingeSystem,
+    result: CycleResult,
+    folder: Path,
+    *,
+    every: int = 1,
     kind: ElementType = ElementType.INCOMPATIBLE,
 ) -> Path:
     """Write a ParaView time series: one .vtu per written increment and a .pvd index.
@@ -98,7 +115,11 @@ def write_time_series(
     """
     folder.mkdir(parents=True, exist_ok=True)
     mesh = system.mesh
-    chosen = [k for k in range(len(result.increments)) if k % every == 0 or k == len(result.increments) - 1]
+    chosen = [
+        k
+        for k in range(len(result.increments))
+        if k % every == 0 or k == len(result.increments) - 1
+    ]
     entries = []
     for k in chosen:
         inc, state = result.increments[k], result.states[k]
@@ -113,9 +134,14 @@ def write_time_series(
         meshio.write(
             folder / name,
             meshio.Mesh(
-                np.asarray(mesh.nodes), [("hexahedron", mesh.hexes)],
+                np.asarray(mesh.nodes),
+                [("hexahedron", mesh.hexes)],
                 point_data={"displacement": u, "contact_pressure": pressure, "slip": slip},
-                cell_data={"stress": [sigma], "von_mises": [von_mises(sigma)], "part": [mesh.elem_part]},
+                cell_data={
+                    "stress": [sigma],
+                    "von_mises": [von_mises(sigma)],
+                    "part": [mesh.elem_part],
+                },
             ),
             binary=True,
         )
@@ -123,6 +149,7 @@ def write_time_series(
     pvd = folder / "cycle.pvd"
     pvd.write_text(
         '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
-        + "\n".join(entries) + "\n  </Collection>\n</VTKFile>\n"
+        + "\n".join(entries)
+        + "\n  </Collection>\n</VTKFile>\n"
     )
     return pvd

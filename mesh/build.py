@@ -63,9 +63,11 @@ def _contact_sizes(model: HingeModel, part: Part, s: MeshSettings) -> tuple[Circ
     return tuple(dict.fromkeys(out))
 
 
-def _slab_dz(model: HingeModel, part: Part, s: MeshSettings, circles: tuple[CircleSize, ...]) -> tuple[float, ...]:
+def _slab_dz(
+    model: HingeModel, part: Part, s: MeshSettings, circles: tuple[CircleSize, ...]
+) -> tuple[float, ...]:
     """Layer thickness per slab: the contact size where a contact face spans the slab, else global."""
-    assert part.sweep is not None  # noqa: S101  (callers dispatch on it)
+    assert part.sweep is not None
     contact_z = [
         (f.box[0][2], f.box[1][2])
         for f in model.faces.values()
@@ -74,7 +76,9 @@ def _slab_dz(model: HingeModel, part: Part, s: MeshSettings, circles: tuple[Circ
     fine = min((c.size_mm for c in circles), default=s.global_mm)
     out = []
     for slab in part.sweep.slabs:
-        in_contact = any(lo <= slab.z0_mm + 1e-9 and slab.z1_mm <= hi + 1e-9 for lo, hi in contact_z)
+        in_contact = any(
+            lo <= slab.z0_mm + 1e-9 and slab.z1_mm <= hi + 1e-9 for lo, hi in contact_z
+        )
         out.append(fine if in_contact else s.global_mm)
     return tuple(out)
 
@@ -99,7 +103,9 @@ def mesh_part(model: HingeModel, part: Part, s: MeshSettings) -> tuple[FloatArra
     return mesh_solid_hex(part.solid, s.global_mm, refine)
 
 
-def mesh_hinge(model: HingeModel, settings: MeshSettings | None = None) -> tuple[HexMesh, MeshReport]:
+def mesh_hinge(
+    model: HingeModel, settings: MeshSettings | None = None
+) -> tuple[HexMesh, MeshReport]:
     """Mesh every part of a hinge and pick its named facet sets.
 
     Args:
@@ -132,14 +138,24 @@ def mesh_hinge(model: HingeModel, settings: MeshSettings | None = None) -> tuple
     facet_sets = {}
     for face in model.faces.values():
         mine = elem_part[owner] == names.index(face.part)
-        chosen = facets[mine][select_facets(nodes, facets[mine], face.surface, face.box, SET_TOL_MM)]
+        chosen = facets[mine][
+            select_facets(nodes, facets[mine], face.surface, face.box, SET_TOL_MM)
+        ]
         if len(chosen) == 0:
-            raise MeshQualityError(f"named face {face.name!r} of part {face.part!r} selected no facets")
+            raise MeshQualityError(
+                f"named face {face.name!r} of part {face.part!r} selected no facets"
+            )
         facet_sets[face.name] = chosen
     surfaces = {
         f.name: f.surface
         for f in model.faces.values()
-        if f.role in (FaceRole.CONTACT_SLAVE, FaceRole.CONTACT_MASTER, FaceRole.BONDED_SLAVE, FaceRole.BONDED_MASTER)
+        if f.role
+        in (
+            FaceRole.CONTACT_SLAVE,
+            FaceRole.CONTACT_MASTER,
+            FaceRole.BONDED_SLAVE,
+            FaceRole.BONDED_MASTER,
+        )
     }
     mesh = HexMesh(
         nodes=nodes,

@@ -79,4 +79,5 @@ def select_facets(
     normal = np.cross(q[:, 2] - q[:, 0], q[:, 3] - q[:, 1])
     normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
     facing = np.einsum("fi,fi->f", normal, surface.outward_normal(c)) > 0.5
-    return on_surface & in_box & facing
+    mask: BoolArray = on_surface & in_box & facing
+    return mask

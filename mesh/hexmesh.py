@@ -34,7 +34,7 @@ IntArray = npt.NDArray[np.int64]
 
 
 def _frozen(a: npt.ArrayLike, dtype: type) -> npt.NDArray[np.generic]:
-    arr = np.array(a, dtype=dtype, copy=True)
+    arr: npt.NDArray[np.generic] = np.array(a, dtype=dtype, copy=True)
     arr.setflags(write=False)
     return arr
 
@@ -70,9 +70,13 @@ class HexMesh:
         object.__setattr__(self, "hexes", _frozen(self.hexes, np.int64))
         object.__setattr__(self, "elem_part", _frozen(self.elem_part, np.int64))
         object.__setattr__(
-            self, "facet_sets", {k: _frozen(v, np.int64).reshape(-1, 4) for k, v in self.facet_sets.items()}
+            self,
+            "facet_sets",
+            {k: _frozen(v, np.int64).reshape(-1, 4) for k, v in self.facet_sets.items()},
         )
-        object.__setattr__(self, "node_sets", {k: _frozen(v, np.int64) for k, v in self.node_sets.items()})
+        object.__setattr__(
+            self, "node_sets", {k: _frozen(v, np.int64) for k, v in self.node_sets.items()}
+        )
         self._validate()
 
     def _validate(self) -> None:
@@ -82,14 +86,21 @@ class HexMesh:
         if self.hexes.ndim != 2 or self.hexes.shape[1] != 8:
             raise MeshQualityError(f"hexes must have shape (n_elem, 8), got {self.hexes.shape}")
         if self.hexes.size and (self.hexes.min() < 0 or self.hexes.max() >= n):
-            raise MeshQualityError(f"hexes index nodes outside [0, {n}): {self.hexes.min()}..{self.hexes.max()}")
+            raise MeshQualityError(
+                f"hexes index nodes outside [0, {n}): {self.hexes.min()}..{self.hexes.max()}"
+            )
         if self.elem_part.shape != (len(self.hexes),):
-            raise MeshQualityError(f"elem_part must have shape ({len(self.hexes)},), got {self.elem_part.shape}")
+            raise MeshQualityError(
+                f"elem_part must have shape ({len(self.hexes)},), got {self.elem_part.shape}"
+            )
         if len(self.part_names) != len(self.materials):
             raise MeshQualityError(
                 f"{len(self.part_names)} part names but {len(self.materials)} materials"
             )
-        for name, f in {**self.facet_sets, **{k: v[:, None] for k, v in self.node_sets.items()}}.items():
+        for name, f in {
+            **self.facet_sets,
+            **{k: v[:, None] for k, v in self.node_sets.items()},
+        }.items():
             if f.size == 0:
                 raise MeshQualityError(f"named set {name!r} is empty")
             if f.min() < 0 or f.max() >= n:
@@ -97,7 +108,9 @@ class HexMesh:
         for p in self.pairs:
             for side in (p.slave, p.master):
                 if side not in self.facet_sets:
-                    raise MeshQualityError(f"pair {p.name!r} names facet set {side!r}, which does not exist")
+                    raise MeshQualityError(
+                        f"pair {p.name!r} names facet set {side!r}, which does not exist"
+                    )
 
     @property
     def n_nodes(self) -> int:
@@ -123,7 +136,9 @@ class HexMesh:
             return np.unique(self.facet_sets[name]).astype(np.int64)
         if name in self.node_sets:
             return np.unique(self.node_sets[name]).astype(np.int64)
-        raise KeyError(f"no facet or node set named {name!r}; have {sorted(self.facet_sets) + sorted(self.node_sets)}")
+        raise KeyError(
+            f"no facet or node set named {name!r}; have {sorted(self.facet_sets) + sorted(self.node_sets)}"
+        )
 
     def facet_normals_areas(self, name: str) -> tuple[FloatArray, FloatArray]:
         """Return outward unit normals (n_facets, 3) and areas (n_facets,) [mm²] of a facet set.

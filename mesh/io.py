@@ -29,7 +29,9 @@ def _meshio_mesh(mesh: HexMesh) -> meshio.Mesh:
     ]
     # Physical tags: parts 1..P, sets P+1..P+S (gmsh wants them positive and unique).
     n_parts = len(mesh.part_names)
-    physical = [mesh.elem_part + 1] + [np.full(n, n_parts + 1 + i, dtype=np.int64) for i, n in enumerate(n_q)]
+    physical = [mesh.elem_part + 1] + [
+        np.full(n, n_parts + 1 + i, dtype=np.int64) for i, n in enumerate(n_q)
+    ]
     field_data = {p: np.array([i + 1, 3]) for i, p in enumerate(mesh.part_names)}
     field_data |= {s: np.array([n_parts + 1 + i, 2]) for i, s in enumerate(names)}
     return meshio.Mesh(
@@ -72,7 +74,11 @@ def read_msh_summary(path: Path) -> dict[str, object]:
         MeshQualityError: If the file has no hexahedra.
     """
     m = meshio.read(path)
-    hexes = np.concatenate([c.data for c in m.cells if c.type == "hexahedron"]) if m.cells else np.empty((0, 8))
+    hexes = (
+        np.concatenate([c.data for c in m.cells if c.type == "hexahedron"])
+        if m.cells
+        else np.empty((0, 8))
+    )
     if len(hexes) == 0:
         raise MeshQualityError(f"{path} holds no hexahedra")
     tag_name = {int(v[0]): k for k, v in m.field_data.items()}

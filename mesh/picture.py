@@ -17,7 +17,9 @@ def _grid(mesh: HexMesh, elements: np.ndarray, shift: np.ndarray):  # type: igno
 
     cells = np.hstack([np.full((len(elements), 1), 8), mesh.hexes[elements]]).ravel()
     types = np.full(len(elements), pv.CellType.HEXAHEDRON, dtype=np.uint8)
-    return pv.UnstructuredGrid(cells, types, np.asarray(mesh.nodes) + shift).extract_surface(algorithm="dataset_surface")
+    return pv.UnstructuredGrid(cells, types, np.asarray(mesh.nodes) + shift).extract_surface(
+        algorithm="dataset_surface"
+    )
 
 
 def _quads(mesh: HexMesh, names: list[str], shift: np.ndarray):  # type: ignore[no-untyped-def]
@@ -46,7 +48,7 @@ def write_mesh_png(mesh: HexMesh, path: Path, *, title: str = "") -> Path:
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
     extent = np.ptp(np.asarray(mesh.nodes), axis=0)
     contact = [n for n in mesh.facet_sets if n in mesh.surfaces]
-    plotter = pv.Plotter(off_screen=True, shape=(1, 2), window_size=(1800, 800))
+    plotter = pv.Plotter(off_screen=True, shape=(1, 2), window_size=[1800, 800])
     for col, exploded in ((0, False), (1, True)):
         plotter.subplot(0, col)
         for i, part in enumerate(mesh.part_names):
@@ -54,18 +56,36 @@ def write_mesh_png(mesh: HexMesh, path: Path, *, title: str = "") -> Path:
             if exploded:  # pull parts apart along y so the pin and the holes show
                 shift[1] = (i - (len(mesh.part_names) - 1) / 2) * 1.3 * extent[1]
             elements = mesh.part_elements(part)
-            plotter.add_mesh(_grid(mesh, elements, shift), color=PART_COLOURS[i % len(PART_COLOURS)],
-                             show_edges=True, edge_color="#404040", line_width=0.5)
-            mine = [n for n in contact if np.isin(mesh.facet_sets[n][:, 0], mesh.part_nodes(part)).all()]
+            plotter.add_mesh(
+                _grid(mesh, elements, shift),
+                color=PART_COLOURS[i % len(PART_COLOURS)],
+                show_edges=True,
+                edge_color="#404040",
+                line_width=0.5,
+            )
+            mine = [
+                n for n in contact if np.isin(mesh.facet_sets[n][:, 0], mesh.part_nodes(part)).all()
+            ]
             if exploded and mine:
-                plotter.add_mesh(_quads(mesh, mine, shift + 0.01), color=CONTACT_COLOUR, show_edges=True,
-                                 edge_color="#400000", line_width=0.5)
+                plotter.add_mesh(
+                    _quads(mesh, mine, shift + 0.01),
+                    color=CONTACT_COLOUR,
+                    show_edges=True,
+                    edge_color="#400000",
+                    line_width=0.5,
+                )
             if exploded:
                 centre = np.asarray(mesh.nodes)[mesh.part_nodes(part)].mean(axis=0) + shift
-                plotter.add_point_labels([centre + [0, 0, extent[2]]], [part], font_size=18,
-                                         shape_opacity=0.6, always_visible=True)
-        plotter.add_axes()
-        plotter.view_isometric()
+                plotter.add_point_labels(
+                    [centre + np.array([0.0, 0.0, extent[2]])],
+                    [part],
+                    font_size=18,
+                    shape_opacity=0.6,
+                    always_visible=True,
+                )
+        # pyvista's decorators hide these signatures from mypy
+        plotter.add_axes()  # type: ignore[call-arg]
+        plotter.view_isometric()  # type: ignore[call-arg]
         plotter.camera.azimuth = -30 if exploded else 20
         plotter.camera.elevation = 25
         text = title if not exploded else "exploded along y — contact surfaces in red"

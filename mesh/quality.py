@@ -70,19 +70,32 @@ def hex_volumes(nodes: FloatArray, hexes: IntArray) -> FloatArray:
     """
     g = 1.0 / np.sqrt(3.0)
     ref = np.array(
-        [[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1], [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]],
+        [
+            [-1, -1, -1],
+            [1, -1, -1],
+            [1, 1, -1],
+            [-1, 1, -1],
+            [-1, -1, 1],
+            [1, -1, 1],
+            [1, 1, 1],
+            [-1, 1, 1],
+        ],
         dtype=np.float64,
     )
     x = nodes[hexes]  # (n_elem, 8, 3)
     vol = np.zeros(len(hexes))
     for p in ref * g:
-        dN = ref * np.array(
-            [
-                (1 + ref[:, 1] * p[1]) * (1 + ref[:, 2] * p[2]),
-                (1 + ref[:, 0] * p[0]) * (1 + ref[:, 2] * p[2]),
-                (1 + ref[:, 0] * p[0]) * (1 + ref[:, 1] * p[1]),
-            ]
-        ).T / 8.0  # (8, 3) dN/dxi at this point
+        dN = (
+            ref
+            * np.array(
+                [
+                    (1 + ref[:, 1] * p[1]) * (1 + ref[:, 2] * p[2]),
+                    (1 + ref[:, 0] * p[0]) * (1 + ref[:, 2] * p[2]),
+                    (1 + ref[:, 0] * p[0]) * (1 + ref[:, 1] * p[1]),
+                ]
+            ).T
+            / 8.0
+        )  # (8, 3) dN/dxi at this point
         J = np.einsum("eni,nj->eij", x, dN)  # (n_elem, 3, 3)
         vol += np.linalg.det(J)
     return vol

@@ -29,7 +29,9 @@ class MeshSettings:
         check_range("contact_size_mm", self.contact_size_mm, 0.01, 20.0)
         check_range("slave_ratio", self.slave_ratio, 1.0, 8.0)
         if not isinstance(self.refinement, int) or not 0 <= self.refinement <= 4:
-            raise ParameterError(f"refinement must be an integer in [0, 4], got {self.refinement!r}")
+            raise ParameterError(
+                f"refinement must be an integer in [0, 4], got {self.refinement!r}"
+            )
         if self.contact_size_mm > self.size_mm:
             raise ParameterError(
                 f"contact_size_mm must be ≤ size_mm ({self.size_mm:g}), got {self.contact_size_mm:g}"

@@ -88,7 +88,11 @@ def mesh_profile(sweep: Sweep, size_mm: float, circles: tuple[CircleSize, ...]) 
             face_of_surface = _map_surfaces(inputs, flat, children)
             # Mesh at twice the size, recombine, then split every element into quads
             # (quad → 4, triangle → 3): all-quad whatever the parity of the boundary.
-            _set_sizes(gmsh, 2.0 * size_mm, tuple(CircleSize(c.radius_mm, 2.0 * c.size_mm) for c in circles))
+            _set_sizes(
+                gmsh,
+                2.0 * size_mm,
+                tuple(CircleSize(c.radius_mm, 2.0 * c.size_mm) for c in circles),
+            )
             gmsh.option.setNumber("Mesh.Algorithm", 8)  # frontal-Delaunay for quads
             gmsh.option.setNumber("Mesh.RecombineAll", 1)
             gmsh.option.setNumber("Mesh.RecombinationAlgorithm", 1)  # blossom
@@ -103,7 +107,9 @@ def mesh_profile(sweep: Sweep, size_mm: float, circles: tuple[CircleSize, ...]) 
 
 
 def _map_surfaces(
-    inputs: list[list[tuple[int, int]]], flat: list[tuple[int, int]], children: list[list[tuple[int, int]]]
+    inputs: list[list[tuple[int, int]]],
+    flat: list[tuple[int, int]],
+    children: list[list[tuple[int, int]]],
 ) -> dict[int, int]:
     """Return gmsh surface tag → index of the profile face it came from."""
     owner: dict[int, int] = {}
@@ -115,7 +121,9 @@ def _map_surfaces(
                     owner[tag] = face_index
             k += 1
     if len(owner) < len(inputs):
-        raise GeometryError(f"fragmenting {len(flat)} profile faces lost some: got {len(owner)} surfaces")
+        raise GeometryError(
+            f"fragmenting {len(flat)} profile faces lost some: got {len(owner)} surfaces"
+        )
     return owner
 
 
@@ -142,8 +150,12 @@ def _set_sizes(gmsh: Any, size_mm: float, circles: tuple[CircleSize, ...]) -> No
         g.model.mesh.setTransfiniteSurface(surface)
     fields = []
     for c in circles:
-        curves = [tag for _, tag in g.model.getEntities(1) if _radii(g, tag).std() < 1e-9 * c.radius_mm
-                  and abs(_radii(g, tag).mean() - c.radius_mm) < 1e-6 * c.radius_mm]
+        curves = [
+            tag
+            for _, tag in g.model.getEntities(1)
+            if _radii(g, tag).std() < 1e-9 * c.radius_mm
+            and abs(_radii(g, tag).mean() - c.radius_mm) < 1e-6 * c.radius_mm
+        ]
         dist = g.model.mesh.field.add("Distance")
         g.model.mesh.field.setNumbers(dist, "CurvesList", curves)
         g.model.mesh.field.setNumber(dist, "Sampling", 200)
@@ -183,13 +195,17 @@ def _collect_quads(gmsh: Any, face_of_surface: dict[int, int]) -> ProfileMesh:
     tags, coords, _ = g.model.mesh.getNodes()
     xyz = np.asarray(coords, dtype=np.float64).reshape(-1, 3)
     index = np.full(int(np.max(tags)) + 1, -1, dtype=np.int64)
-    index[np.asarray(tags, dtype=np.int64)] = np.arange(len(tags))  # gmsh tags are 1-based: this is the one conversion
+    index[np.asarray(tags, dtype=np.int64)] = np.arange(
+        len(tags)
+    )  # gmsh tags are 1-based: this is the one conversion
     quads, owners = [], []
     for surface, face_index in sorted(face_of_surface.items()):
         types, _, node_tags = g.model.mesh.getElements(2, surface)
         for etype, nt in zip(types, node_tags, strict=True):
             if etype != QUAD4:
-                raise GeometryError(f"gmsh left elements of type {etype} (not quads) on profile face {face_index}")
+                raise GeometryError(
+                    f"gmsh left elements of type {etype} (not quads) on profile face {face_index}"
+                )
             q = index[np.asarray(nt, dtype=np.int64).reshape(-1, 4)]
             quads.append(q)
             owners.append(np.full(len(q), face_index, dtype=np.int64))
@@ -199,7 +215,9 @@ def _collect_quads(gmsh: Any, face_of_surface: dict[int, int]) -> ProfileMesh:
     signed = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
     quad_arr[signed < 0] = quad_arr[signed < 0][:, ::-1]  # counter-clockwise: normal +z
     used, compact = np.unique(quad_arr, return_inverse=True)
-    return ProfileMesh(xy[used].copy(), compact.reshape(-1, 4).astype(np.int64), np.concatenate(owners))
+    return ProfileMesh(
+        xy[used].copy(), compact.reshape(-1, 4).astype(np.int64), np.concatenate(owners)
+    )
 
 
 def layer_levels(z0_mm: float, z1_mm: float, dz_mm: float) -> FloatArray:
@@ -208,7 +226,9 @@ def layer_levels(z0_mm: float, z1_mm: float, dz_mm: float) -> FloatArray:
     return np.linspace(z0_mm, z1_mm, n + 1)
 
 
-def extrude(profile: ProfileMesh, sweep: Sweep, slab_dz_mm: tuple[float, ...]) -> tuple[FloatArray, IntArray]:
+def extrude(
+    profile: ProfileMesh, sweep: Sweep, slab_dz_mm: tuple[float, ...]
+) -> tuple[FloatArray, IntArray]:
     """Extrude a profile mesh through a sweep's slabs into hexahedra.
 
     Args:
@@ -224,7 +244,9 @@ def extrude(profile: ProfileMesh, sweep: Sweep, slab_dz_mm: tuple[float, ...]) -
     for slab, dz in zip(sweep.slabs, slab_dz_mm, strict=True):
         z = layer_levels(slab.z0_mm, slab.z1_mm, dz)
         if levels and abs(levels[-1] - z[0]) > 1e-9:
-            raise GeometryError(f"slabs of the sweep are not contiguous at z = {levels[-1]} / {z[0]}")
+            raise GeometryError(
+                f"slabs of the sweep are not contiguous at z = {levels[-1]} / {z[0]}"
+            )
         start = len(levels) - 1 if levels else 0
         levels.extend(z[1:] if levels else z)
         slab_layers.append((start, len(levels) - 1))

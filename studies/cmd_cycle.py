@@ -19,13 +19,41 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
     p = sub.add_parser("cycle", help="run the 0 → +Fg → −Fg → +Fg cycle; write loop, η, fields")
     add_geometry_arguments(p)
-    p.add_argument("--amplitude", type=float, default=400.0, metavar="N", help="force amplitude Fg [N] (default 400)")
-    p.add_argument("--mu", type=float, default=DEFAULT_MU, metavar="X",
-                   help=f"pin-hole friction coefficient (default {DEFAULT_MU}; the paper gives none)")
-    p.add_argument("--increments", type=int, default=20, metavar="N", help="increments per half cycle (default 20)")
-    p.add_argument("--cycles", type=int, default=1, metavar="N", help="closed loops after the first loading (default 1)")
-    p.add_argument("--frames", type=int, default=4, metavar="K",
-                   help="write every K-th increment to the ParaView series (0: none; default 4)")
+    p.add_argument(
+        "--amplitude",
+        type=float,
+        default=400.0,
+        metavar="N",
+        help="force amplitude Fg [N] (default 400)",
+    )
+    p.add_argument(
+        "--mu",
+        type=float,
+        default=DEFAULT_MU,
+        metavar="X",
+        help=f"pin-hole friction coefficient (default {DEFAULT_MU}; the paper gives none)",
+    )
+    p.add_argument(
+        "--increments",
+        type=int,
+        default=20,
+        metavar="N",
+        help="increments per half cycle (default 20)",
+    )
+    p.add_argument(
+        "--cycles",
+        type=int,
+        default=1,
+        metavar="N",
+        help="closed loops after the first loading (default 1)",
+    )
+    p.add_argument(
+        "--frames",
+        type=int,
+        default=4,
+        metavar="K",
+        help="write every K-th increment to the ParaView series (0: none; default 4)",
+    )
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -40,9 +68,15 @@ def run(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     if args.hinge != "general":
-        raise ParameterError(f"cycle supports --hinge general only for now, got --hinge {args.hinge}")
-    settings = CycleSettings(amplitude_n=args.amplitude, mu=args.mu, increments_per_stage=args.increments,
-                             n_cycles=args.cycles)
+        raise ParameterError(
+            f"cycle supports --hinge general only for now, got --hinge {args.hinge}"
+        )
+    settings = CycleSettings(
+        amplitude_n=args.amplitude,
+        mu=args.mu,
+        increments_per_stage=args.increments,
+        n_cycles=args.cycles,
+    )
     if args.frames < 0:
         raise ParameterError(f"frames must be ≥ 0, got {args.frames}")
     model = make_model(args.hinge, clearance_mm=args.clearance)
@@ -55,25 +89,35 @@ def run(args: argparse.Namespace) -> int:
         bar.close()
     files = {k: str(v) for k, v in meshed.files.items()}
     files["loop_csv"] = str(write_loop_csv(result, args.out / "loop.csv"))
-    files["loop_png"] = str(write_loop_png(
-        result, args.out / "loop.png",
-        title=f"general hinge, Δr = {clearance:g} mm, Fg = {args.amplitude:g} N, μ = {args.mu:g}"))
+    files["loop_png"] = str(
+        write_loop_png(
+            result,
+            args.out / "loop.png",
+            title=f"general hinge, Δr = {clearance:g} mm, Fg = {args.amplitude:g} N, μ = {args.mu:g}",
+        )
+    )
     if args.frames:
-        files["pvd"] = str(write_time_series(system, result, args.out / "fields", every=args.frames))
+        files["pvd"] = str(
+            write_time_series(system, result, args.out / "fields", every=args.frames)
+        )
     summary = _summary(result, system, meshed, files, time.perf_counter() - t0)
     (args.out / "result.json").write_text(dumps(summary))
     if args.json:
         print(dumps(summary))
     else:
-        print(f"η = {summary['eta']:.5f}   W_cycle = {summary['W_cycle_Nmm']:.5g} N·mm   "
-              f"δ(+Fg) = {summary['disp_at_peak_mm'] * 1e3:.3f} µm   free play = {summary['free_play_mm'] * 1e3:.0f} µm "
-              f"(removed)   energy balance {summary['energy_balance_rel_err']:.1e}   {summary['wall_s']:.1f} s")
-        print(f"results in {args.out}/ (loop.csv, loop.png, result.json, fields/cycle.pvd, mesh files)")
+        print(
+            f"η = {summary['eta']:.5f}   W_cycle = {summary['W_cycle_Nmm']:.5g} N·mm   "
+            f"δ(+Fg) = {summary['disp_at_peak_mm'] * 1e3:.3f} µm   free play = {summary['free_play_mm'] * 1e3:.0f} µm "
+            f"(removed)   energy balance {summary['energy_balance_rel_err']:.1e}   {summary['wall_s']:.1f} s"
+        )
+        print(
+            f"results in {args.out}/ (loop.csv, loop.png, result.json, fields/cycle.pvd, mesh files)"
+        )
     return 0
 
 
 def _progress_bar(args: argparse.Namespace) -> Any:
-    if args.no_progress or not sys.stderr.isatty() and args.json:
+    if args.no_progress or (not sys.stderr.isatty() and args.json):
         return None
     from tqdm import tqdm
 
@@ -85,13 +129,15 @@ def _progress_bar(args: argparse.Namespace) -> Any:
     return Bar(desc="increments", unit="inc", file=sys.stderr, leave=False)
 
 
-def _summary(result: Any, system: Any, meshed: Any, files: dict[str, str], wall: float) -> dict[str, Any]:
+def _summary(
+    result: Any, system: Any, meshed: Any, files: dict[str, str], wall: float
+) -> dict[str, Any]:
     m = result.metrics()
     incs = result.increments
     return {
         **m,
         "delta_definition": "δ_max = (δ(+Fg) − δ(−Fg))/2 of the last loop, free play removed; "
-                            "δ is the grip displacement relative to the tang's fixed face",
+        "δ is the grip displacement relative to the tang's fixed face",
         "amplitude_N": result.settings.amplitude_n,
         "mu": result.settings.mu,
         "clearance_mm": result.clearance_mm,
@@ -99,11 +145,20 @@ def _summary(result: Any, system: Any, meshed: Any, files: dict[str, str], wall:
         "n_hex": meshed.report.n_hex,
         "n_contact_pairs": len(result.configs[1].geo.slave),
         "n_surface_pairs": len(system.mesh.pairs),
-        "increments": [{"stage": i.stage, "force_N": i.force_n, "disp_mm": i.disp_mm, "iterations": i.iterations,
-                        "open": i.n_open, "stick": i.n_stick, "slip": i.n_slip} for i in incs],
+        "increments": [
+            {
+                "stage": i.stage,
+                "force_N": i.force_n,
+                "disp_mm": i.disp_mm,
+                "iterations": i.iterations,
+                "open": i.n_open,
+                "stick": i.n_stick,
+                "slip": i.n_slip,
+            }
+            for i in incs
+        ],
         "total_iterations": sum(i.iterations for i in incs),
         "timings_s": {"mesh": meshed.timings_s["mesh"], **system.timings_s, **result.timings_s},
         "files": files,
         "wall_s": wall,
     }
-

@@ -12,15 +12,36 @@ from studies.pipeline import HINGES, build_and_mesh, dumps, make_model, mesh_sum
 
 def add_geometry_arguments(p: argparse.ArgumentParser) -> None:
     """Add the options that choose a hinge and its mesh (shared with ``cycle``)."""
-    p.add_argument("--hinge", choices=HINGES, default="general", help="hinge kind (default: general)")
-    p.add_argument("--clearance", type=float, default=None, metavar="MM",
-                   help="radial pin-hole clearance of the general hinge [mm] (default 0)")
-    p.add_argument("--preload", type=float, default=None, metavar="N",
-                   help="axial bearing preload of the bearing hinge [N] (default 0)")
-    p.add_argument("--refinement", type=int, default=0, metavar="K", help="mesh level; each halves sizes (0-4)")
-    p.add_argument("--size", type=float, default=None, metavar="MM", help="global element size at level 0 [mm]")
-    p.add_argument("--contact-size", type=float, default=None, metavar="MM",
-                   help="master contact-surface element size at level 0 [mm]")
+    p.add_argument(
+        "--hinge", choices=HINGES, default="general", help="hinge kind (default: general)"
+    )
+    p.add_argument(
+        "--clearance",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="radial pin-hole clearance of the general hinge [mm] (default 0)",
+    )
+    p.add_argument(
+        "--preload",
+        type=float,
+        default=None,
+        metavar="N",
+        help="axial bearing preload of the bearing hinge [N] (default 0)",
+    )
+    p.add_argument(
+        "--refinement", type=int, default=0, metavar="K", help="mesh level; each halves sizes (0-4)"
+    )
+    p.add_argument(
+        "--size", type=float, default=None, metavar="MM", help="global element size at level 0 [mm]"
+    )
+    p.add_argument(
+        "--contact-size",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="master contact-surface element size at level 0 [mm]",
+    )
 
 
 def settings_from_args(args: argparse.Namespace) -> MeshSettings:
@@ -54,8 +75,10 @@ def run(args: argparse.Namespace) -> int:
         print(dumps(summary))
     else:
         r = meshed.report
-        print(f"{model.kind} hinge: {r.n_hex} hexes, {r.n_nodes} nodes, min scaled Jacobian "
-              f"{r.min_scaled_jacobian:.3f}, {summary['wall_s']:.1f} s")
+        print(
+            f"{model.kind} hinge: {r.n_hex} hexes, {r.n_nodes} nodes, min scaled Jacobian "
+            f"{r.min_scaled_jacobian:.3f}, {summary['wall_s']:.1f} s"
+        )
         for name, path in meshed.files.items():
             print(f"  {name:5s} {path}")
     return 0

@@ -30,7 +30,9 @@ def sha256_of(path: Path) -> str:
     return h.hexdigest()
 
 
-def make_model(hinge: str, *, clearance_mm: float | None = None, preload_n: float | None = None) -> HingeModel:
+def make_model(
+    hinge: str, *, clearance_mm: float | None = None, preload_n: float | None = None
+) -> HingeModel:
     """Build a hinge model from the command-line parameters.
 
     Raises:
@@ -40,13 +42,19 @@ def make_model(hinge: str, *, clearance_mm: float | None = None, preload_n: floa
         from cad.general import GeneralHingeParams, make_general_hinge
 
         if preload_n is not None:
-            raise ParameterError(f"preload applies to the bearing hinge only, got --preload {preload_n} with --hinge general")
-        return make_general_hinge(GeneralHingeParams(clearance_mm=0.0 if clearance_mm is None else clearance_mm))
+            raise ParameterError(
+                f"preload applies to the bearing hinge only, got --preload {preload_n} with --hinge general"
+            )
+        return make_general_hinge(
+            GeneralHingeParams(clearance_mm=0.0 if clearance_mm is None else clearance_mm)
+        )
     if hinge == "bearing":
         from cad.bearing import BearingHingeParams, make_bearing_hinge
 
         if clearance_mm is not None:
-            raise ParameterError(f"the bearing hinge has no clearance, got --clearance {clearance_mm} with --hinge bearing")
+            raise ParameterError(
+                f"the bearing hinge has no clearance, got --clearance {clearance_mm} with --hinge bearing"
+            )
         kwargs = {} if preload_n is None else {"preload_n": preload_n}
         return make_bearing_hinge(BearingHingeParams(**kwargs))
     raise ParameterError(f"hinge must be one of {HINGES}, got {hinge!r}")
@@ -71,7 +79,9 @@ class MeshedHinge:
     timings_s: dict[str, float]
 
 
-def build_and_mesh(model: HingeModel, settings: MeshSettings, out: Path, *, picture: bool = True) -> MeshedHinge:
+def build_and_mesh(
+    model: HingeModel, settings: MeshSettings, out: Path, *, picture: bool = True
+) -> MeshedHinge:
     """Mesh a model and write its STEP, .msh, .vtu and PNG files into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     t = time.perf_counter()
@@ -84,8 +94,13 @@ def build_and_mesh(model: HingeModel, settings: MeshSettings, out: Path, *, pict
     if picture:
         title = f"{model.kind} hinge: {report.n_hex} hexes, {report.n_nodes} nodes"
         files["png"] = write_mesh_png(mesh, out / "mesh.png", title=title)
-    return MeshedHinge(model, mesh, report, files,
-                       {"step": t_step, "mesh": report.wall_s, "write": time.perf_counter() - t})
+    return MeshedHinge(
+        model,
+        mesh,
+        report,
+        files,
+        {"step": t_step, "mesh": report.wall_s, "write": time.perf_counter() - t},
+    )
 
 
 def mesh_summary(m: MeshedHinge, total_wall_s: float) -> dict[str, Any]:
@@ -93,9 +108,17 @@ def mesh_summary(m: MeshedHinge, total_wall_s: float) -> dict[str, Any]:
     r = m.report
     return {
         "hinge": m.model.kind,
-        "params": {k: v for k, v in vars(m.model.params).items() if isinstance(v, int | float | type(None))},
-        "parts": {name: {"volume_mm3": p["volume_mm3"], "mesh_volume_mm3": p["mesh_volume_mm3"],
-                         "n_hex": int(p["n_hex"])} for name, p in r.parts.items()},
+        "params": {
+            k: v for k, v in vars(m.model.params).items() if isinstance(v, int | float | type(None))
+        },
+        "parts": {
+            name: {
+                "volume_mm3": p["volume_mm3"],
+                "mesh_volume_mm3": p["mesh_volume_mm3"],
+                "n_hex": int(p["n_hex"]),
+            }
+            for name, p in r.parts.items()
+        },
         "n_nodes": r.n_nodes,
         "n_hex": r.n_hex,
         "hex_fraction": r.hex_fraction,

@@ -40,10 +40,10 @@ def test_volumes_match_closed_form(model, params):
 
 def test_bounding_boxes(model, params):
     bb = model.part("clevis").solid.bounding_box()
-    assert bb.max.X == pytest.approx(params.clevis_length_mm + params.clevis_base_mm, abs=1e-6)
-    assert bb.max.Z - bb.min.Z == pytest.approx(params.span_mm, abs=1e-6)
+    assert pytest.approx(params.clevis_length_mm + params.clevis_base_mm, abs=1e-6) == bb.max.X
+    assert pytest.approx(params.span_mm, abs=1e-6) == bb.max.Z - bb.min.Z
     bb = model.part("tang").solid.bounding_box()
-    assert bb.min.X == pytest.approx(-params.tang_length_mm, abs=1e-6)
+    assert pytest.approx(-params.tang_length_mm, abs=1e-6) == bb.min.X
 
 
 @pytest.mark.parametrize("clearance", [0.05, 0.2, 0.4], ids=lambda c: f"clearance={c}")
@@ -85,7 +85,15 @@ def test_named_faces_and_pairs(model):
         ("pin_length_mm", 60.0),  # overhangs more than anything holds
         ("clearance_mm", float("nan")),
     ],
-    ids=["negative-clearance", "no-wall", "zero-pin", "negative-thickness", "short-pin", "long-pin", "nan"],
+    ids=[
+        "negative-clearance",
+        "no-wall",
+        "zero-pin",
+        "negative-thickness",
+        "short-pin",
+        "long-pin",
+        "nan",
+    ],
 )
 def test_bad_parameters_name_themselves(field, value):
     with pytest.raises(ParameterError, match=field) as info:

@@ -17,7 +17,7 @@ from fe.hinge_system import build_system, displacement, support_reaction
 from mesh.settings import MeshSettings
 
 pytest.importorskip("gmsh")
-from mesh.build import mesh_hinge  # noqa: E402
+from mesh.build import mesh_hinge
 
 COARSE = MeshSettings(size_mm=4.0, contact_size_mm=2.0)
 
@@ -62,7 +62,9 @@ def test_energy_balance_friction_work_equals_loop_area(which, request):
 def test_loop_closes_and_eta_is_the_papers_definition(tight_400):
     m = tight_400.metrics()
     assert abs(m["loop_closure_mm"]) < 1e-3 * m["delta_max_mm"]
-    assert m["eta"] == pytest.approx(m["W_cycle_Nmm"] / (2 * math.pi * 0.5 * 400.0 * m["delta_max_mm"]))
+    assert m["eta"] == pytest.approx(
+        m["W_cycle_Nmm"] / (2 * math.pi * 0.5 * 400.0 * m["delta_max_mm"])
+    )
     assert 0.0 < m["eta"] < 1.0
 
 
@@ -99,7 +101,7 @@ def test_force_control_and_pin_equilibrium(tight, tight_400):
 
 def test_clearance_free_play_and_contact_near_the_load_line(loose_400):
     assert loose_400.free_play_mm == pytest.approx(0.4)
-    F, d_raw, _ = loose_400.loop_arrays(with_free_play=True)
+    _F, d_raw, _ = loose_400.loop_arrays(with_free_play=True)
     assert d_raw.max() - d_raw.min() > 0.4  # the raw loop spans the free play
     cond, state = loose_400.configs[1], loose_400.states[len(loose_400.increments) - 1]
     closed = np.asarray(state.p)[:, 0] > 0
@@ -127,12 +129,17 @@ def test_failed_increment_is_cut_back_then_raises_with_partial_loop(tight):
     err = info.value
     assert isinstance(err.partial, CycleResult)
     assert err.increment == len(err.partial.increments)
-    assert "increment" in str(err) and "residual" in str(err)
+    assert "increment" in str(err)
+    assert "residual" in str(err)
 
 
 @pytest.mark.parametrize(
     ("kw", "name"),
-    [({"amplitude_n": -5.0}, "amplitude_n"), ({"mu": -0.1}, "mu"), ({"increments_per_stage": 1}, "increments")],
+    [
+        ({"amplitude_n": -5.0}, "amplitude_n"),
+        ({"mu": -0.1}, "mu"),
+        ({"increments_per_stage": 1}, "increments"),
+    ],
     ids=["negative-amplitude", "negative-mu", "one-increment"],
 )
 def test_bad_settings_name_themselves(kw, name):

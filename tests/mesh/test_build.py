@@ -14,7 +14,7 @@ from mesh.quality import check_quality, hex_volumes
 from mesh.settings import MeshSettings
 
 pytest.importorskip("gmsh")
-from mesh.build import mesh_hinge  # noqa: E402
+from mesh.build import mesh_hinge
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +39,9 @@ def test_pin_mesh_volume_is_the_inscribed_polygon_prism(meshed, params):
     mesh, report = meshed
     n = ring_count(mesh, "pin_tang", params.pin_radius_mm)
     polygon = 0.5 * n * params.pin_radius_mm**2 * math.sin(2 * math.pi / n)
-    assert report.parts["pin"]["mesh_volume_mm3"] == pytest.approx(polygon * params.pin_length, rel=1e-9)
+    assert report.parts["pin"]["mesh_volume_mm3"] == pytest.approx(
+        polygon * params.pin_length, rel=1e-9
+    )
 
 
 def test_lug_mesh_volumes_close_to_solids(meshed):
@@ -88,8 +90,12 @@ def test_named_sets_non_empty_with_outward_normals(meshed):
 def test_fixed_and_load_face_areas(meshed, params):
     mesh, _ = meshed
     p = params
-    assert mesh.facet_normals_areas("tang_fixed")[1].sum() == pytest.approx(p.lug_width_mm * p.tang_thickness_mm)
-    assert mesh.facet_normals_areas("clevis_load")[1].sum() == pytest.approx(p.lug_width_mm * p.span_mm)
+    assert mesh.facet_normals_areas("tang_fixed")[1].sum() == pytest.approx(
+        p.lug_width_mm * p.tang_thickness_mm
+    )
+    assert mesh.facet_normals_areas("clevis_load")[1].sum() == pytest.approx(
+        p.lug_width_mm * p.span_mm
+    )
 
 
 def test_slave_surface_finer_than_master(meshed, params):
@@ -116,8 +122,12 @@ def test_refinement_halves_sizes(params):
 
 @pytest.mark.parametrize(
     ("kwargs", "name"),
-    [({"refinement": 5}, "refinement"), ({"size_mm": -1.0}, "size_mm"), ({"slave_ratio": 0.5}, "slave_ratio"),
-     ({"contact_size_mm": 5.0, "size_mm": 2.0}, "contact_size_mm")],
+    [
+        ({"refinement": 5}, "refinement"),
+        ({"size_mm": -1.0}, "size_mm"),
+        ({"slave_ratio": 0.5}, "slave_ratio"),
+        ({"contact_size_mm": 5.0, "size_mm": 2.0}, "contact_size_mm"),
+    ],
     ids=["refinement", "size", "ratio", "contact-larger-than-global"],
 )
 def test_bad_mesh_settings(kwargs, name):

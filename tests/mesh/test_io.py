@@ -10,7 +10,7 @@ from cad.general import GeneralHingeParams, make_general_hinge
 from mesh.io import read_msh_summary, write_msh, write_vtu
 
 pytest.importorskip("gmsh")
-from mesh.build import mesh_hinge  # noqa: E402
+from mesh.build import mesh_hinge
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +44,7 @@ def test_msh_opens_in_gmsh_with_names(mesh, tmp_path):
 
 def test_vtu_holds_parts_and_sets(mesh, tmp_path):
     m = meshio.read(write_vtu(mesh, tmp_path / "m.vtu"))
-    hexes = [c for c in m.cells if c.type == "hexahedron"][0].data
+    hexes = next(c for c in m.cells if c.type == "hexahedron").data
     assert np.array_equal(hexes, mesh.hexes)
     part = np.concatenate(m.cell_data["part"])
     assert np.array_equal(np.bincount(part[part >= 0]), np.bincount(mesh.elem_part))

@@ -14,12 +14,36 @@ COARSE = ["--size", "4", "--contact-size", "2", "--increments", "6"]
 
 
 def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
-    argv = ["cycle", "--clearance", "0.05", "--amplitude", "300", "--mu", "0.15", *COARSE,
-            "--frames", "6", "--out", str(tmp_path), "--json", "--no-progress"]
+    argv = [
+        "cycle",
+        "--clearance",
+        "0.05",
+        "--amplitude",
+        "300",
+        "--mu",
+        "0.15",
+        *COARSE,
+        "--frames",
+        "6",
+        "--out",
+        str(tmp_path),
+        "--json",
+        "--no-progress",
+    ]
     assert main(argv) == 0
     out = json.loads(capsys.readouterr().out)
-    for key in ("eta", "W_cycle_Nmm", "U_max_Nmm", "disp_at_peak_mm", "free_play_mm", "energy_balance_rel_err",
-                "n_dof", "n_contact_pairs", "wall_s", "timings_s"):
+    for key in (
+        "eta",
+        "W_cycle_Nmm",
+        "U_max_Nmm",
+        "disp_at_peak_mm",
+        "free_play_mm",
+        "energy_balance_rel_err",
+        "n_dof",
+        "n_contact_pairs",
+        "wall_s",
+        "timings_s",
+    ):
         assert key in out, key
     assert out["free_play_mm"] == pytest.approx(0.2)
     assert out["energy_balance_rel_err"] < 0.02
@@ -36,7 +60,11 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
 
 @pytest.mark.parametrize(
     ("argv", "needle"),
-    [(["--amplitude", "-1"], "amplitude_n"), (["--mu", "-0.3"], "mu"), (["--hinge", "bearing"], "general only")],
+    [
+        (["--amplitude", "-1"], "amplitude_n"),
+        (["--mu", "-0.3"], "mu"),
+        (["--hinge", "bearing"], "general only"),
+    ],
     ids=["negative-amplitude", "negative-mu", "bearing-not-yet"],
 )
 def test_cycle_bad_input(tmp_path, capsys, argv, needle):

@@ -12,7 +12,10 @@ pytest.importorskip("gmsh")
 
 
 def test_mesh_json_and_files(tmp_path, capsys):
-    assert main(["mesh", "--hinge", "general", "--clearance", "0.1", "--out", str(tmp_path), "--json"]) == 0
+    assert (
+        main(["mesh", "--hinge", "general", "--clearance", "0.1", "--out", str(tmp_path), "--json"])
+        == 0
+    )
     out = json.loads(capsys.readouterr().out)
     assert set(out["parts"]) == {"tang", "clevis", "pin"}
     for key in ("n_nodes", "hex_fraction", "min_scaled_jacobian", "sets", "wall_s"):
@@ -27,11 +30,15 @@ def test_mesh_json_and_files(tmp_path, capsys):
 
 @pytest.mark.parametrize(
     ("argv", "needle"),
-    [(["--clearance", "-0.2"], "clearance_mm"), (["--refinement", "9"], "refinement"),
-     (["--hinge", "general", "--preload", "50"], "preload")],
+    [
+        (["--clearance", "-0.2"], "clearance_mm"),
+        (["--refinement", "9"], "refinement"),
+        (["--hinge", "general", "--preload", "50"], "preload"),
+    ],
     ids=["negative-clearance", "refinement", "preload-on-general"],
 )
 def test_bad_parameter_exits_1_with_message(tmp_path, capsys, argv, needle):
     assert main(["mesh", *argv, "--out", str(tmp_path), "--no-picture"]) == 1
     err = capsys.readouterr().err
-    assert needle in err and "error" in err
+    assert needle in err
+    assert "error" in err
