@@ -23,6 +23,9 @@ logger = logging.getLogger(__name__)
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
+VOLUME_RETRIES = 3
+"""Attempts at a volume-meshed part, each with sizes 3 % smaller than the last."""
+
 SET_TOL_MM = 1e-4
 """Largest distance of a node from a named face's exact surface to count as on it [mm]."""
 
@@ -73,13 +76,13 @@ def _slab_dz(
         for f in model.faces.values()
         if f.part == part.name and f.role in (FaceRole.CONTACT_SLAVE, FaceRole.CONTACT_MASTER)
     ]
-    fine = min((c.size_mm for c in circles), default=s.global_mm)
+    fine = min((c.size_mm for c in circles), default=s.size_for(part.name))
     out = []
     for slab in part.sweep.slabs:
         in_contact = any(
             lo <= slab.z0_mm + 1e-9 and slab.z1_mm <= hi + 1e-9 for lo, hi in contact_z
         )
-        out.append(fine if in_contact else s.global_mm)
+        out.append(fine if in_contact else s.size_for(part.name))
     return tuple(out)
 
 
@@ -91,16 +94,36 @@ def mesh_part(model: HingeModel, part: Part, s: MeshSettings) -> tuple[FloatArra
     """
     if part.sweep is not None:
         circles = _contact_sizes(model, part, s)
-        profile = mesh_profile(part.sweep, s.global_mm, circles)
+        profile = mesh_profile(part.sweep, s.size_for(part.name), circles)
         return extrude(profile, part.sweep, _slab_dz(model, part, s, circles))
     from mesh.volume import mesh_solid_hex  # only volume-meshed parts need it
 
-    refine = [
-        (f.surface, f.box, s.slave_mm if f.role is FaceRole.CONTACT_SLAVE else s.master_mm)
-        for f in model.faces.values()
-        if f.part == part.name and f.role in (FaceRole.CONTACT_SLAVE, FaceRole.CONTACT_MASTER)
-    ]
-    return mesh_solid_hex(part.solid, s.global_mm, refine)
+    error: MeshQualityError | None = None
+    for attempt in range(VOLUME_RETRIES):
+        # A tet sliver occasionally tangles when gmsh splits it into hexes; the same
+        # solid at sizes 3 % smaller meshes differently, so retry before giving up.
+        k = 0.97**attempt
+        refine = [
+            (
+                f.surface,
+                f.box,
+                k * (s.slave_mm if f.role is FaceRole.CONTACT_SLAVE else s.master_mm),
+            )
+            for f in model.faces.values()
+            if f.part == part.name and f.role in (FaceRole.CONTACT_SLAVE, FaceRole.CONTACT_MASTER)
+        ]
+        try:
+            nodes, hexes = mesh_solid_hex(part.solid, k * s.size_for(part.name), refine)
+        except MeshQualityError as err:
+            error = err
+            logger.warning(
+                "%s: %s; retrying with sizes × %.2f", part.name, err, 0.97 ** (attempt + 1)
+            )
+            continue
+        return nodes, hexes
+    raise MeshQualityError(
+        f"{part.name}: no valid hex mesh after {VOLUME_RETRIES} tries: {error}"
+    ) from error
 
 
 def mesh_hinge(

@@ -17,12 +17,15 @@ class MeshSettings:
         slave_ratio: Slave contact surfaces get ``contact_size_mm / slave_ratio`` (≥ 1:
             the slave side is the finer one, as in the paper).
         refinement: Refinement level; each level halves every size.
+        part_sizes_mm: Per-part global sizes at level 0 as (name fragment, size) pairs;
+            the first fragment found in a part's name wins, other parts use ``size_mm``.
     """
 
     size_mm: float = 3.0
     contact_size_mm: float = 1.2
     slave_ratio: float = 1.5
     refinement: int = 0
+    part_sizes_mm: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
         check_range("size_mm", self.size_mm, 0.05, 50.0)
@@ -32,6 +35,8 @@ class MeshSettings:
             raise ParameterError(
                 f"refinement must be an integer in [0, 4], got {self.refinement!r}"
             )
+        for fragment, size in self.part_sizes_mm:
+            check_range(f"part_sizes_mm[{fragment!r}]", size, 0.01, 50.0)
         if self.contact_size_mm > self.size_mm:
             raise ParameterError(
                 f"contact_size_mm must be ≤ size_mm ({self.size_mm:g}), got {self.contact_size_mm:g}"
@@ -56,3 +61,37 @@ class MeshSettings:
     def slave_mm(self) -> float:
         """Slave contact-surface size at this level [mm]."""
         return self.master_mm / self.slave_ratio
+
+    def size_for(self, part: str) -> float:
+        """Global size of one part at this level [mm]."""
+        for fragment, size in self.part_sizes_mm:
+            if fragment in part:
+                return size * self.scale
+        return self.global_mm
+
+    @classmethod
+    def for_hinge(cls, kind: str, **overrides: float | int) -> MeshSettings:
+        """Return the default settings of a hinge kind, with any field overridden.
+
+        The bearing hinge's 4 mm balls and thin rings need their own sizes, and its
+        ball–raceway contact patches (Hertz radius ≈ 0.15 mm at 200 N preload) a far
+        finer contact size than the pin and holes of the general hinge; these defaults
+        mesh it in about 80 s (benchmarks/bench_bearing_mesh.py).
+        """
+        if kind == "bearing":
+            base: dict[str, object] = {
+                "size_mm": 2.5,
+                "contact_size_mm": 0.15,
+                "slave_ratio": 1.5,
+                "part_sizes_mm": (
+                    ("ball", 0.6),
+                    ("ring", 0.8),
+                    ("pin", 1.2),
+                    ("preload_plate", 1.2),
+                ),
+            }
+        elif kind == "general":
+            base = {}
+        else:
+            raise ParameterError(f"hinge kind must be 'general' or 'bearing', got {kind!r}")
+        return cls(**{**base, **overrides})  # type: ignore[arg-type]

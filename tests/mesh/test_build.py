@@ -135,3 +135,21 @@ def test_bad_mesh_settings(kwargs, name):
 
     with pytest.raises(ParameterError, match=name):
         MeshSettings(**kwargs)
+
+
+def test_per_part_sizes_and_hinge_defaults():
+    s = MeshSettings.for_hinge("bearing")
+    assert s.size_for("ball_0_3") == pytest.approx(0.6)
+    assert s.size_for("inner_ring_1") == pytest.approx(0.8)
+    assert s.size_for("tang") == pytest.approx(s.size_mm)
+    assert MeshSettings.for_hinge("bearing", refinement=1).size_for("ball_0_3") == pytest.approx(
+        0.3
+    )
+    assert MeshSettings.for_hinge("general") == MeshSettings()
+
+
+def test_unknown_hinge_kind_is_refused():
+    from cad.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="hinge kind"):
+        MeshSettings.for_hinge("telescope")

@@ -42,3 +42,18 @@ def test_bad_parameter_exits_1_with_message(tmp_path, capsys, argv, needle):
     err = capsys.readouterr().err
     assert needle in err
     assert "error" in err
+
+
+@pytest.mark.slow
+def test_bearing_hinge_mesh_on_defaults(tmp_path, capsys):
+    assert (
+        main(["mesh", "--hinge", "bearing", "--preload", "150", "--out", str(tmp_path), "--json"])
+        == 0
+    )
+    out = json.loads(capsys.readouterr().out)
+    assert out["hex_fraction"] == 1.0
+    assert out["min_scaled_jacobian"] > 0
+    balls = [p for p in out["parts"] if p.startswith("ball_")]
+    assert len(balls) == 2 * 10
+    assert all(n > 0 for n in out["sets"].values())
+    assert out["wall_s"] < 300
