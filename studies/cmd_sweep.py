@@ -1,0 +1,100 @@
+"""``hingelab sweep``: η over a clearance × amplitude grid, traced and resumable."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from cad.errors import ParameterError
+from fe.cycle import DEFAULT_MU
+from mesh.settings import MeshSettings
+from studies.pipeline import dumps
+from studies.sweep import SweepSettings, run_sweep
+
+
+def _floats(name: str, text: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError as err:
+        raise ParameterError(f"{name} must be comma-separated numbers, got {text!r}") from err
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Add the ``sweep`` subcommand."""
+    p = sub.add_parser(
+        "sweep", help="run the cycle over a clearance × amplitude grid (resumable, Dask)"
+    )
+    p.add_argument(
+        "--clearance", default="0,0.1,0.2,0.3,0.4", metavar="LIST", help="clearances [mm]"
+    )
+    p.add_argument(
+        "--amplitude", default="100,200,300,400,500", metavar="LIST", help="amplitudes [N]"
+    )
+    p.add_argument("--mu", type=float, default=DEFAULT_MU, metavar="X", help="friction coefficient")
+    p.add_argument(
+        "--increments", type=int, default=20, metavar="N", help="increments per half cycle"
+    )
+    p.add_argument(
+        "--workers", type=int, default=1, metavar="N", help="Dask worker processes (1: in process)"
+    )
+    p.add_argument(
+        "--size", type=float, default=None, metavar="MM", help="global element size [mm]"
+    )
+    p.add_argument(
+        "--contact-size", type=float, default=None, metavar="MM", help="contact element size [mm]"
+    )
+    p.add_argument("--refinement", type=int, default=0, metavar="K", help="mesh level (0-4)")
+    p.add_argument("--study", default="general_hinge", help="study name in the trace")
+    p.add_argument(
+        "--out", type=Path, required=True, metavar="DIR", help="output folder (rerun to resume)"
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``hingelab sweep``."""
+    mesh_kw: dict[str, float | int] = {"refinement": args.refinement}
+    if args.size is not None:
+        mesh_kw["size_mm"] = args.size
+    if args.contact_size is not None:
+        mesh_kw["contact_size_mm"] = args.contact_size
+    settings = SweepSettings(
+        clearances_mm=_floats("clearance", args.clearance),
+        amplitudes_n=_floats("amplitude", args.amplitude),
+        mu=args.mu,
+        increments_per_stage=args.increments,
+        mesh=MeshSettings.for_hinge("general", **mesh_kw),
+        workers=args.workers,
+        study=args.study,
+    )
+
+    def report(rec: dict[str, object]) -> None:
+        if not args.json:
+            p = rec["params"]
+            eta = rec["results"].get("eta") if isinstance(rec["results"], dict) else None  # type: ignore[union-attr]
+            what = f"η = {eta:.5f}" if rec["status"] == "ok" else f"FAILED: {rec['error']}"
+            print(f"  {p}: {what}", file=sys.stderr)  # type: ignore[index]
+
+    outcome = run_sweep(settings, args.out, on_point=report)
+    summary = {
+        "ok": outcome.ok,
+        "failed": outcome.failed,
+        "skipped": outcome.skipped,
+        "trace": str(outcome.db),
+        "table": str(outcome.table),
+        "wall_s": outcome.wall_s,
+    }
+    if args.json:
+        print(dumps(summary))
+    else:
+        print(
+            f"{outcome.ok} points computed, {outcome.failed} failed, {outcome.skipped} already done "
+            f"({outcome.wall_s:.0f} s). Trace: {outcome.db}"
+        )
+        print(
+            f"next: hingelab rsm fit {outcome.table} --x clearance_mm,amplitude_N --y eta --degree 4 "
+            f"--trace {outcome.db}"
+        )
+    return 0 if outcome.failed == 0 else 1

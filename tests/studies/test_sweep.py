@@ -1,0 +1,65 @@
+"""Sweeps: points traced, failures recorded without stopping, resume, Dask workers."""
+
+from __future__ import annotations
+
+import csv
+
+import pytest
+
+from mesh.settings import MeshSettings
+from rsm import trace
+from studies.sweep import SweepSettings, run_sweep
+
+pytest.importorskip("gmsh")
+COARSE = MeshSettings(size_mm=4.0, contact_size_mm=2.0)
+
+
+def rows(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_sweep_records_failures_goes_on_and_resumes(tmp_path):
+    settings = SweepSettings(
+        clearances_mm=(0.0,), amplitudes_n=(100.0, -5.0, 400.0), mesh=COARSE, increments_per_stage=6
+    )
+    first = run_sweep(settings, tmp_path)
+    assert (first.ok, first.failed, first.skipped) == (2, 1, 0)
+    table = rows(first.table)
+    assert sorted(float(r["amplitude_N"]) for r in table) == [100.0, 400.0]
+    # zero clearance: η cannot depend on the amplitude (positive homogeneity)
+    etas = [float(r["eta"]) for r in table]
+    assert etas[0] == pytest.approx(etas[1], rel=0.01)
+    failed = [trace.walk(first.db, pid) for pid in range(1, 4)]
+    bad = [t for t in failed if t.status == "failed"]
+    assert len(bad) == 1
+    assert "amplitude_n" in bad[0].error
+    # every ok point leads back to its STEP file, mesh, mesh picture and loop
+    ok = next(t for t in failed if t.status == "ok")
+    kinds = {a.kind for a in ok.artifacts if a.state.value == "ok"}
+    assert {"step", "mesh_msh", "mesh_png", "loop_csv", "loop_png"} <= kinds
+
+    again = run_sweep(settings, tmp_path)
+    assert (again.ok, again.failed, again.skipped) == (0, 1, 2)  # only the failed point is retried
+
+
+def test_sweep_on_dask_workers(tmp_path):
+    settings = SweepSettings(
+        clearances_mm=(0.0, 0.1),
+        amplitudes_n=(200.0,),
+        mesh=COARSE,
+        increments_per_stage=6,
+        workers=2,
+    )
+    out = run_sweep(settings, tmp_path)
+    assert (out.ok, out.failed) == (2, 0)
+    assert {float(r["clearance_mm"]) for r in rows(out.table)} == {0.0, 0.1}
+
+
+def test_bad_sweep_settings():
+    from cad.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="workers"):
+        SweepSettings(workers=0)
+    with pytest.raises(ParameterError, match="at least one clearance"):
+        SweepSettings(clearances_mm=())
