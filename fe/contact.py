@@ -276,6 +276,7 @@ def solve_increment(
     G: FloatArray | None = None,
     e: FloatArray | None = None,
     increment: int = 0,
+    start: tuple[FloatArray, FloatArray] | None = None,
 ) -> IncrementResult:
     """Solve one quasi-static increment of the frictional contact problem.
 
@@ -289,6 +290,9 @@ def solve_increment(
         G: Rigid-body map of floating bodies, shape (3m, k), float64 [mm per unit α].
         e: Load on the rigid amplitudes, ``Gᵀ p = e``, shape (k,), float64 [N].
         increment: Index reported in a ConvergenceError.
+        start: Starting iterate ``(p (m, 3), α (k,))`` for Newton, e.g. extrapolated from
+            the last increments; it changes where Newton starts, never the solution, and
+            never the works (those use ``state_prev``). Default: the warm start.
 
     Returns:
         The new state, iteration count, residual history, status counts and works.
@@ -305,7 +309,13 @@ def solve_increment(
     r = r_base
     col_sq = float(np.max(np.sum(prob.G**2, axis=0))) if k else 0.0
     cut = settings.rigid_rcond * col_sq / float(np.mean(blocks))
-    if settings.warm_start:
+    if start is not None:
+        p0, a0 = np.array(start[0], dtype=np.float64), np.array(start[1], dtype=np.float64)
+        if p0.shape != (m, 3) or a0.shape != (k,):
+            raise ParameterError(
+                f"start must have shapes {(m, 3)} and {(k,)}, got {p0.shape} and {a0.shape}"
+            )
+    elif settings.warm_start:
         p0, a0 = np.array(state_prev.p), np.array(state_prev.alpha)
     else:
         p0, a0 = np.zeros((m, 3)), np.zeros(k)
