@@ -381,6 +381,14 @@ def _advance(
     """Go from force f_from to f_to, halving the step on failure up to max_cutbacks times.
 
     Args:
+        cond: The configuration's condensed operators.
+        state: Converged state at ``f_from``.
+        f_from: Force at the start [N].
+        f_to: Force to reach [N].
+        contact: Contact-solver settings.
+        settings: Cycle settings (cut-back limit).
+        index: Increment index for error messages.
+        partial: Builds the partial result attached to a final ConvergenceError.
         previous: The converged (force, state) before ``state`` on the same branch, if
             any. While the active set holds, the solution is linear in F, so Newton
             starts from the linear extrapolation of the last two states (one or two
