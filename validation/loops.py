@@ -1,0 +1,361 @@
+"""Loop processing, the same for measured and model loops.
+
+A record follows the protocol 0 → +Fg → −Fg → +Fg (more closed cycles −Fg → +Fg may
+follow; the last one is used). Every loop, measured or computed, goes through
+``process_loop``, so both sides of a comparison are measured with the same ruler:
+
+1. **Stages** (``split_stages``): the record is cut into excursions where the force is
+   above ``+h`` or below ``−h``, with ``h = ½ max|F|`` (a hysteresis threshold: noise far
+   smaller than Fg/2 cannot create or hide a reversal). The excursions must alternate
+   +, −, +, (−, +)…; within each, the extreme sample is the turning point. The last loop
+   runs from the last-but-one positive peak through the last negative peak to the last
+   positive peak.
+2. **Offsets** (``remove_offsets``): the *initial zero* is the run of leading samples
+   before the force first moves away from the first sample by more than a band: four times
+   the force noise (estimated from the median absolute second difference, which a
+   ramp does not change), capped at ``ZERO_FRACTION`` of the peak. A record that dwells
+   at zero before loading (as a test machine records) gets its whole dwell; a
+   noise-free record (the model) gets its first sample only. The force offset is the
+   median force of that run (a load cell that reads non-zero at zero load), the
+   displacement offset its median displacement (the loop starts at δ = 0).
+3. **Metrics** (``loop_metrics``), on the last loop ``+Fg → −Fg → +Fg``:
+
+   * ``F_max = (F(+peak) − F(−peak))/2``, the half peak-to-peak force (exactly Fg for
+     the model);
+   * ``δ_max = (δ(+Fg) − δ(−Fg))/2`` as in ``fe.cycle`` (the paper's Eq. 1 triangle);
+   * ``U_max = ½ F_max δ_max`` and ``η = W_cycle / (2π U_max)``;
+   * ``W_cycle = ∮ F dδ`` by the trapezoid rule along the samples, the loop being
+     **closed by the straight chord from its last point back to its first** (shoelace
+     formula). A loop that does not close (creep, drift, noise at the peaks) then gets
+     the area of the closed polygon, and W does not depend on the force or
+     displacement offsets;
+   * the displacement at the (final) peak δ(+Fg) from the start, and the secant
+     stiffness ``F_max / δ_max``.
+
+``loop_distance`` resamples the descending and the ascending branch of two loops on a
+common force grid and returns the RMS of the displacement differences [mm].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from cad.errors import DataError
+
+FloatArray = npt.NDArray[np.float64]
+
+ZERO_FRACTION = 0.05
+"""The initial-zero band is at most this fraction of the force's rise to its peak."""
+
+NOISE_BANDS = 4.0
+"""The initial-zero band is this many force-noise standard deviations."""
+
+REVERSAL_FRACTION = 0.5
+"""Excursions are counted beyond ± this fraction of max|F| (hysteresis threshold)."""
+
+GRID_POINTS = 101
+"""Force levels per branch on which ``loop_distance`` compares two loops."""
+
+
+@dataclass(frozen=True)
+class Stages:
+    """Turning points of a record (indices into its samples).
+
+    Attributes:
+        start: First sample after the initial zero run (the loading starts here).
+        peak_first: The +Fg turning point that opens the last loop.
+        trough: The −Fg turning point of the last loop.
+        peak_last: The +Fg turning point that closes the last loop.
+        n_cycles: Closed loops −Fg → +Fg found in the record.
+    """
+
+    start: int
+    peak_first: int
+    trough: int
+    peak_last: int
+    n_cycles: int
+
+    @property
+    def last_loop(self) -> slice:
+        """Samples of the last loop +Fg → −Fg → +Fg (inclusive of both peaks)."""
+        return slice(self.peak_first, self.peak_last + 1)
+
+
+@dataclass(frozen=True)
+class LoopMetrics:
+    """What ``loop_metrics`` measures on one loop (names as in ``fe.cycle`` metrics).
+
+    Attributes:
+        f_max_n: Half peak-to-peak force of the last loop [N].
+        disp_at_peak_mm: δ(+Fg) at the closing peak, from the start [mm].
+        disp_at_minus_peak_mm: δ(−Fg) [mm].
+        delta_max_mm: (δ(+Fg) − δ(−Fg))/2 [mm].
+        W_cycle_Nmm: Loop area, closed by the chord [N·mm].
+        U_max_Nmm: ½ F_max δ_max [N·mm].
+        eta: W_cycle / (2π U_max).
+        secant_stiffness_N_per_mm: F_max / δ_max [N/mm].
+        closure_mm: δ(end) − δ(start) of the last loop, the gap the chord closes [mm].
+        n_samples: Samples in the last loop.
+    """
+
+    f_max_n: float
+    disp_at_peak_mm: float
+    disp_at_minus_peak_mm: float
+    delta_max_mm: float
+    W_cycle_Nmm: float
+    U_max_Nmm: float
+    eta: float
+    secant_stiffness_N_per_mm: float
+    closure_mm: float
+    n_samples: int
+
+    def as_dict(self) -> dict[str, float]:
+        """Return the metrics as a plain dict (JSON-ready)."""
+        return {k: float(v) for k, v in vars(self).items()}
+
+
+@dataclass(frozen=True, eq=False)
+class ProcessedLoop:
+    """A record with its offsets removed, its stages and its metrics.
+
+    Attributes:
+        force_n: Force with the offset removed, shape (n,) [N].
+        displacement_mm: Displacement from the start, shape (n,) [mm].
+        stages: Its turning points.
+        metrics: Its metrics.
+        force_offset_n: The force offset that was removed [N].
+        displacement_offset_mm: The displacement offset that was removed [mm].
+        source: Where the record came from (file name or ``model:<case>``).
+    """
+
+    force_n: FloatArray
+    displacement_mm: FloatArray
+    stages: Stages
+    metrics: LoopMetrics
+    force_offset_n: float
+    displacement_offset_mm: float
+    source: str
+
+    def branches(self) -> tuple[tuple[FloatArray, FloatArray], tuple[FloatArray, FloatArray]]:
+        """Return ((F, δ) descending +Fg → −Fg, (F, δ) ascending −Fg → +Fg) of the last loop."""
+        s = self.stages
+        down = slice(s.peak_first, s.trough + 1)
+        up = slice(s.trough, s.peak_last + 1)
+        F, d = self.force_n, self.displacement_mm
+        return (F[down], d[down]), (F[up], d[up])
+
+
+def _check_arrays(force_n: FloatArray, displacement_mm: FloatArray, source: str) -> None:
+    F = np.asarray(force_n)
+    d = np.asarray(displacement_mm)
+    if F.ndim != 1 or F.shape != d.shape:
+        raise DataError(
+            f"{source}: force and displacement must be 1-D of equal length, got shapes "
+            f"{F.shape} and {d.shape}"
+        )
+    if F.size < 4:
+        raise DataError(f"{source}: a loop needs at least 4 samples, got {F.size}")
+    for name, a in (("force_N", F), ("displacement_mm", d)):
+        bad = np.flatnonzero(~np.isfinite(a))
+        if bad.size:
+            raise DataError(
+                f"{source}: row {bad[0] + 1}, column {name}: not a finite number ({a[bad[0]]})"
+            )
+
+
+def noise_level(values: FloatArray) -> float:
+    """Estimate the standard deviation of white noise on a piecewise-smooth signal.
+
+    ``σ ≈ 1.4826 · MAD(Δ²x) / √6``: second differences cancel ramps, white noise of
+    variance σ² gives them variance 6σ², and the median absolute deviation ignores the
+    few samples at the turning points.
+
+    Args:
+        values: The signal, shape (n,).
+    """
+    d2 = np.diff(np.asarray(values, dtype=np.float64), 2)
+    if d2.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+
+
+def initial_zero(force_n: FloatArray) -> int:
+    """Return the length of the initial zero run (≥ 1 sample).
+
+    Args:
+        force_n: Raw force, shape (n,) [N].
+
+    Returns:
+        Number of leading samples before the force first differs from its first sample
+        by more than ``min(NOISE_BANDS · noise, ZERO_FRACTION · max|F − F₀|)``.
+    """
+    F = np.asarray(force_n, dtype=np.float64)
+    rise = float(np.max(np.abs(F - F[0])))
+    band = min(NOISE_BANDS * noise_level(F), ZERO_FRACTION * rise)
+    above = np.flatnonzero(np.abs(F - F[0]) > band)
+    return int(above[0]) if above.size and above[0] > 0 else 1
+
+
+def split_stages(force_n: FloatArray, source: str) -> Stages:
+    """Find the turning points of a 0 → +Fg → −Fg → +Fg (→ −Fg → +Fg …) record.
+
+    Args:
+        force_n: Force, shape (n,) [N] (offset removed or not: the threshold is ½ max|F|).
+        source: Name of the record for error messages.
+
+    Returns:
+        The stages.
+
+    Raises:
+        DataError: If the excursions beyond ±½ max|F| do not alternate +, −, +, ….
+    """
+    F = np.asarray(force_n, dtype=np.float64)
+    h = REVERSAL_FRACTION * float(np.max(np.abs(F)))
+    level = np.sign(F).astype(np.int64) * (np.abs(F) > h)  # +1, −1 beyond ±h, else 0
+    idx = np.flatnonzero(level)
+    if idx.size == 0:
+        raise DataError(f"{source}: the force never leaves zero")
+    lv = level[idx]
+    cut = np.flatnonzero(np.diff(lv)) + 1
+    runs = np.split(idx, cut)  # each run: the samples of one excursion
+    signs = [int(level[r[0]]) for r in runs]
+    expected = [1 if k % 2 == 0 else -1 for k in range(len(signs))]
+    if signs != expected or len(signs) < 3 or len(signs) % 2 == 0:
+        found = ", ".join("+" if s > 0 else "−" for s in signs)
+        raise DataError(
+            f"{source}: expected the load sequence 0 → +Fg → −Fg → +Fg (excursions beyond "
+            f"±{h:.4g} N: +, −, +), found {found}"
+        )
+
+    def extreme(run: npt.NDArray[np.int64], sign: int) -> int:
+        return int(run[np.argmax(sign * F[run])])
+
+    return Stages(
+        start=initial_zero(F),
+        peak_first=extreme(runs[-3], 1),
+        trough=extreme(runs[-2], -1),
+        peak_last=extreme(runs[-1], 1),
+        n_cycles=(len(runs) - 1) // 2,
+    )
+
+
+def loop_area(force_n: FloatArray, displacement_mm: FloatArray) -> float:
+    """Return ∮ F dδ of a polygon closed by the chord from the last point to the first [N·mm].
+
+    ``W = Σ ½ (F_i + F_{i+1}) (δ_{i+1} − δ_i)`` over the samples and the closing chord;
+    for a closed polygon this is the shoelace area, independent of constant offsets.
+
+    Args:
+        force_n: Force along the loop, shape (n,) [N].
+        displacement_mm: Displacement along the loop, shape (n,) [mm].
+    """
+    F = np.append(np.asarray(force_n, dtype=np.float64), force_n[0])
+    d = np.append(np.asarray(displacement_mm, dtype=np.float64), displacement_mm[0])
+    return float(np.sum(0.5 * (F[1:] + F[:-1]) * np.diff(d)))
+
+
+def loop_metrics(force_n: FloatArray, displacement_mm: FloatArray, stages: Stages) -> LoopMetrics:
+    """Measure the last loop of an offset-free record (see the module docstring).
+
+    Args:
+        force_n: Force, offset removed, shape (n,) [N].
+        displacement_mm: Displacement from the start, shape (n,) [mm].
+        stages: Its turning points.
+    """
+    F = np.asarray(force_n, dtype=np.float64)
+    d = np.asarray(displacement_mm, dtype=np.float64)
+    sl = stages.last_loop
+    W = loop_area(F[sl], d[sl])
+    f_max = 0.5 * float(F[stages.peak_last] - F[stages.trough])
+    d_plus, d_minus = float(d[stages.peak_last]), float(d[stages.trough])
+    delta_max = 0.5 * (d_plus - d_minus)
+    U = 0.5 * f_max * delta_max
+    return LoopMetrics(
+        f_max_n=float(f_max),
+        disp_at_peak_mm=d_plus,
+        disp_at_minus_peak_mm=d_minus,
+        delta_max_mm=delta_max,
+        W_cycle_Nmm=W,
+        U_max_Nmm=U,
+        eta=W / (2 * math.pi * U) if U > 0 else math.nan,
+        secant_stiffness_N_per_mm=f_max / delta_max if delta_max > 0 else math.nan,
+        closure_mm=float(d[stages.peak_last] - d[stages.peak_first]),
+        n_samples=sl.stop - sl.start,
+    )
+
+
+def remove_offsets(
+    force_n: FloatArray, displacement_mm: FloatArray
+) -> tuple[FloatArray, FloatArray, float, float]:
+    """Subtract the force and displacement of the initial zero run (medians).
+
+    Returns:
+        (force [N], displacement [mm], force offset [N], displacement offset [mm]); the
+        inputs are not modified.
+    """
+    F = np.asarray(force_n, dtype=np.float64)
+    d = np.asarray(displacement_mm, dtype=np.float64)
+    n0 = initial_zero(F)
+    f0 = float(np.median(F[:n0]))
+    d0 = float(np.median(d[:n0]))
+    return F - f0, d - d0, f0, d0
+
+
+def process_loop(force_n: FloatArray, displacement_mm: FloatArray, source: str) -> ProcessedLoop:
+    """Remove offsets, split the stages and measure the last loop of a record.
+
+    Args:
+        force_n: Raw force, shape (n,) [N].
+        displacement_mm: Raw displacement, shape (n,) [mm].
+        source: Name of the record for error messages.
+
+    Raises:
+        DataError: On non-finite samples or a record that is not 0 → +Fg → −Fg → +Fg.
+    """
+    _check_arrays(force_n, displacement_mm, source)
+    F, d, f0, d0 = remove_offsets(force_n, displacement_mm)
+    stages = split_stages(F, source)
+    return ProcessedLoop(F, d, stages, loop_metrics(F, d, stages), f0, d0, source)
+
+
+def _branch_on_grid(F: FloatArray, d: FloatArray, grid: FloatArray) -> FloatArray:
+    """δ(F) of one branch on ``grid``, the samples sorted by force (noise makes F non-monotone)."""
+    order = np.argsort(F, kind="stable")
+    return np.interp(grid, F[order], d[order])
+
+
+def branch_residuals(
+    measured: ProcessedLoop, model: ProcessedLoop, n_grid: int = GRID_POINTS
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Resample both branches of two loops on a common force grid and subtract.
+
+    The grid spans ±0.98 of the smaller F_max, so both loops cover it. Each loop is
+    centred on the midpoint (δ(+Fg) + δ(−Fg))/2 of its own peaks: the residual then
+    measures the loop's shape (stiffness and width), not the start offset, which
+    ``disp_at_peak_mm`` already measures.
+
+    Returns:
+        (force grid (n_grid,) [N], δ_model − δ_measured on the descending branch
+        (n_grid,) [mm], same on the ascending branch (n_grid,) [mm]).
+    """
+    f_c = 0.98 * min(measured.metrics.f_max_n, model.metrics.f_max_n)
+    grid = np.linspace(-f_c, f_c, n_grid)
+    out = []
+    for loop in (measured, model):
+        centre = 0.5 * (loop.metrics.disp_at_peak_mm + loop.metrics.disp_at_minus_peak_mm)
+        (Fd, dd), (Fu, du) = loop.branches()
+        out.append((_branch_on_grid(Fd, dd, grid) - centre, _branch_on_grid(Fu, du, grid) - centre))
+    return grid, out[1][0] - out[0][0], out[1][1] - out[0][1]
+
+
+def loop_distance(a: ProcessedLoop, b: ProcessedLoop, n_grid: int = GRID_POINTS) -> float:
+    """RMS displacement difference between two loops over both branches [mm].
+
+    See ``branch_residuals`` for the grid and the centring.
+    """
+    _, r_down, r_up = branch_residuals(a, b, n_grid)
+    return float(np.sqrt(np.mean(np.concatenate([r_down, r_up]) ** 2)))

@@ -1,0 +1,336 @@
+"""``MODEL.toml``: everything that defines a hinge model, in one file.
+
+Sections (every key optional except ``[hinge] kind``; an absent key keeps the
+dataclass default)::
+
+    [hinge]            kind = "general" | "bearing", then the fields of
+                       GeneralHingeParams / BearingHingeParams (lengths in mm)
+    [materials.lug]    name, young_mpa, poisson   (one table per *_material field:
+    [materials.pin]     lug, pin, and bearing for the bearing hinge)
+    [mesh]             the fields of MeshSettings; [mesh.part_sizes_mm] "fragment" = size
+    [friction]         mu
+    [cycle]            the fields of CycleSettings except mu (amplitude_n is the default
+                       amplitude; ``compare`` runs each case at its own)
+    [effects.NAME]     parameters of a switched-on physical effect, checked against a
+                       registry of known effects and their parameter ranges
+
+Unknown sections and keys are refused by name with the allowed ones listed; a wrong
+type is refused naming the key; out-of-range values are refused by the dataclasses'
+own checks (``ParameterError`` naming the field, its value and the range), prefixed
+with the file and section. ``write_model`` writes the same layout back (TOML by hand:
+flat tables of numbers and strings), and ``read_model(write_model(spec))`` returns an
+equal spec.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import json
+import math
+import tomllib
+import types
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from cad.bearing import BearingHingeParams
+from cad.errors import DataError, ParameterError, check_range
+from cad.general import GeneralHingeParams
+from cad.materials import Material
+from fe.cycle import CycleSettings
+from mesh.settings import MeshSettings
+
+HingeParams = GeneralHingeParams | BearingHingeParams
+
+HINGE_PARAMS: dict[str, type[GeneralHingeParams] | type[BearingHingeParams]] = {
+    "general": GeneralHingeParams,
+    "bearing": BearingHingeParams,
+}
+"""Hinge kind → its parameter dataclass."""
+
+EffectRegistry = Mapping[str, Mapping[str, tuple[float, float]]]
+"""Effect name → parameter name → (lowest, highest) allowed value."""
+
+NO_EFFECTS: EffectRegistry = types.MappingProxyType({})
+"""The registry until the first physical effect is written (every [effects.*] is refused)."""
+
+SECTIONS = ("hinge", "materials", "mesh", "friction", "cycle", "effects")
+_MATERIAL_SUFFIX = "_material"
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A complete hinge model.
+
+    Attributes:
+        kind: Hinge kind (``general`` or ``bearing``).
+        hinge: Geometry and materials.
+        mesh: Mesh settings.
+        cycle: Load protocol and solver options, including the friction coefficient μ.
+        effects: Enabled effect → its parameters (read-only mappings).
+    """
+
+    kind: str
+    hinge: HingeParams
+    mesh: MeshSettings = field(default_factory=MeshSettings)
+    cycle: CycleSettings = field(default_factory=CycleSettings)
+    effects: Mapping[str, Mapping[str, float]] = field(
+        default_factory=lambda: types.MappingProxyType({})
+    )
+
+    def __post_init__(self) -> None:
+        if self.kind not in HINGE_PARAMS:
+            raise ParameterError(f"kind must be one of {tuple(HINGE_PARAMS)}, got {self.kind!r}")
+        if not isinstance(self.hinge, HINGE_PARAMS[self.kind]):
+            raise ParameterError(
+                f"kind {self.kind!r} needs {HINGE_PARAMS[self.kind].__name__}, "
+                f"got {type(self.hinge).__name__}"
+            )
+        frozen = {k: types.MappingProxyType(dict(v)) for k, v in self.effects.items()}
+        object.__setattr__(self, "effects", types.MappingProxyType(frozen))
+
+
+def _where(path: Path, section: str) -> str:
+    return f"{path}: [{section}]"
+
+
+def _check_keys(table: Mapping[str, Any], allowed: list[str], where: str) -> None:
+    unknown = [k for k in table if k not in allowed]
+    if unknown:
+        raise ParameterError(
+            f"{where}: unknown key(s) {unknown}; allowed: {', '.join(allowed) or '(none)'}"
+        )
+
+
+def _convert(value: Any, hint: Any, key: str, where: str) -> Any:
+    """Check a TOML value against a dataclass field's type; return it in that type."""
+    args = typing.get_args(hint)
+    if hint is float or (type(None) in args and float in args):
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ParameterError(f"{where}: {key} must be a number, got {value!r}")
+        return float(value)
+    if hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ParameterError(f"{where}: {key} must be an integer, got {value!r}")
+        return value
+    if isinstance(hint, type) and issubclass(hint, enum.Enum):
+        names = [m.name for m in hint]
+        if value not in names:
+            raise ParameterError(f"{where}: {key} must be one of {names}, got {value!r}")
+        return hint[value]
+    if typing.get_origin(hint) is tuple:  # MeshSettings.part_sizes_mm: fragment → size
+        if not isinstance(value, dict):
+            raise ParameterError(f"{where}: {key} must be a table of name = size, got {value!r}")
+        return tuple((str(k), _convert(v, float, f"{key}.{k}", where)) for k, v in value.items())
+    raise ParameterError(f"{where}: {key} has a type this file format cannot hold ({hint})")
+
+
+def _build(cls: Any, values: Mapping[str, Any], where: str, **extra: Any) -> Any:
+    """Construct a parameter dataclass, prefixing its ParameterError with the file and section."""
+    try:
+        return cls(**values, **extra)
+    except ParameterError as err:
+        raise ParameterError(f"{where}: {err}") from err
+
+
+def _plain_fields(cls: Any, skip: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Field name → resolved type of a dataclass, without materials and ``skip``."""
+    hints = typing.get_type_hints(cls)
+    return {
+        f.name: hints[f.name]
+        for f in fields(cls)
+        if not f.name.endswith(_MATERIAL_SUFFIX) and f.name not in skip
+    }
+
+
+def _table(doc: Mapping[str, Any], name: str, where: str) -> dict[str, Any]:
+    value = doc.get(name, {})
+    if not isinstance(value, dict):
+        raise ParameterError(f"{where}: {name} must be a table, got {value!r}")
+    return value
+
+
+def _read_section(
+    cls: Any, table: Mapping[str, Any], where: str, skip: tuple[str, ...] = ()
+) -> dict[str, Any]:
+    hints = _plain_fields(cls, skip)
+    _check_keys(table, list(hints), where)
+    return {k: _convert(v, hints[k], k, where) for k, v in table.items()}
+
+
+def _read_materials(cls: Any, table: Mapping[str, Any], path: Path) -> dict[str, Material]:
+    defaults = {
+        f.name.removesuffix(_MATERIAL_SUFFIX): f.default
+        for f in fields(cls)
+        if f.name.endswith(_MATERIAL_SUFFIX)
+    }
+    _check_keys(table, list(defaults), _where(path, "materials"))
+    out = {}
+    for role, values in table.items():
+        where = _where(path, f"materials.{role}")
+        if not isinstance(values, dict):
+            raise ParameterError(f"{where}: must be a table of name, young_mpa, poisson")
+        _check_keys(values, ["name", "young_mpa", "poisson"], where)
+        base = defaults[role]
+        name = values.get("name", base.name)
+        if not isinstance(name, str):
+            raise ParameterError(f"{where}: name must be a string, got {name!r}")
+        young = _convert(values.get("young_mpa", base.young_mpa), float, "young_mpa", where)
+        poisson = _convert(values.get("poisson", base.poisson), float, "poisson", where)
+        out[role + _MATERIAL_SUFFIX] = _build(
+            Material, {}, where, name=name, young_mpa=young, poisson=poisson
+        )
+    return out
+
+
+def _read_effects(
+    table: Mapping[str, Any], registry: EffectRegistry, path: Path
+) -> dict[str, dict[str, float]]:
+    known = ", ".join(registry) or "(none yet)"
+    out = {}
+    for name, params in table.items():
+        where = _where(path, f"effects.{name}")
+        if name not in registry:
+            raise ParameterError(f"{where}: unknown effect {name!r}; known effects: {known}")
+        if not isinstance(params, dict):
+            raise ParameterError(f"{where}: must be a table of parameters")
+        ranges = registry[name]
+        _check_keys(params, list(ranges), where)
+        missing = [p for p in ranges if p not in params]
+        if missing:
+            raise ParameterError(f"{where}: missing parameter(s) {missing}")
+        checked = {}
+        for p, v in params.items():
+            checked[p] = _convert(v, float, p, where)
+            try:
+                check_range(f"effects.{name}.{p}", checked[p], *ranges[p])
+            except ParameterError as err:
+                raise ParameterError(f"{path}: {err}") from err
+        out[name] = checked
+    return out
+
+
+def read_model(path: Path | str, registry: EffectRegistry = NO_EFFECTS) -> ModelSpec:
+    """Read and validate a MODEL.toml.
+
+    Args:
+        path: The file.
+        registry: Known effects and their parameter ranges.
+
+    Returns:
+        The model.
+
+    Raises:
+        DataError: If the file is missing or not valid TOML.
+        ParameterError: Unknown section or key (the allowed ones listed), wrong type,
+            or a value outside its range (named with the file and section).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"{path}: model file not found")
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as err:
+        raise DataError(f"{path}: not valid TOML: {err}") from err
+    _check_keys(doc, list(SECTIONS), str(path))
+    hinge = _table(doc, "hinge", str(path))
+    kind = hinge.get("kind")
+    if kind not in HINGE_PARAMS:
+        raise ParameterError(
+            f"{_where(path, 'hinge')}: kind must be one of {list(HINGE_PARAMS)}, got {kind!r}"
+        )
+    cls = HINGE_PARAMS[kind]
+    geometry = _read_section(
+        cls, {k: v for k, v in hinge.items() if k != "kind"}, _where(path, "hinge")
+    )
+    materials = _read_materials(cls, _table(doc, "materials", str(path)), path)
+    params = _build(cls, {**geometry, **materials}, _where(path, "hinge"))
+    mesh = _build(
+        MeshSettings,
+        _read_section(MeshSettings, _table(doc, "mesh", str(path)), _where(path, "mesh")),
+        _where(path, "mesh"),
+    )
+    friction = _table(doc, "friction", str(path))
+    _check_keys(friction, ["mu"], _where(path, "friction"))
+    cycle_values = _read_section(
+        CycleSettings, _table(doc, "cycle", str(path)), _where(path, "cycle"), skip=("mu",)
+    )
+    if "mu" in friction:
+        cycle_values["mu"] = _convert(friction["mu"], float, "mu", _where(path, "friction"))
+    cycle = _build(CycleSettings, cycle_values, _where(path, "cycle/friction"))
+    effects = _read_effects(_table(doc, "effects", str(path)), registry, path)
+    return ModelSpec(kind, params, mesh, cycle, effects)
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, enum.Enum):
+        return json.dumps(value.name)
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)  # JSON strings are valid TOML basic strings
+    raise ParameterError(f"cannot write {value!r} to TOML")
+
+
+def _lines(values: Mapping[str, Any]) -> list[str]:
+    return [f"{k} = {_toml_value(v)}" for k, v in values.items() if v is not None]
+
+
+def write_model(spec: ModelSpec, path: Path | str) -> Path:
+    """Write a model as MODEL.toml (the layout ``read_model`` reads).
+
+    Args:
+        spec: The model.
+        path: Where to write.
+
+    Returns:
+        ``path``.
+    """
+    path = Path(path)
+    h = spec.hinge
+    out = ["# hingelab model file (read by validation.model_file.read_model)", "", "[hinge]"]
+    out += [f"kind = {_toml_value(spec.kind)}"]
+    out += _lines({k: getattr(h, k) for k in _plain_fields(type(h))})
+    for f in fields(h):
+        if f.name.endswith(_MATERIAL_SUFFIX):
+            m = getattr(h, f.name)
+            out += ["", f"[materials.{f.name.removesuffix(_MATERIAL_SUFFIX)}]"]
+            out += _lines({"name": m.name, "young_mpa": m.young_mpa, "poisson": m.poisson})
+    mesh = {k: getattr(spec.mesh, k) for k in _plain_fields(MeshSettings)}
+    parts = mesh.pop("part_sizes_mm")
+    out += ["", "[mesh]", *_lines(mesh)]
+    if parts:
+        out += ["", "[mesh.part_sizes_mm]"]
+        out += [
+            f"{json.dumps(name, ensure_ascii=False)} = {_toml_value(size)}" for name, size in parts
+        ]
+    out += ["", "[friction]", f"mu = {_toml_value(spec.cycle.mu)}"]
+    cycle = {k: getattr(spec.cycle, k) for k in _plain_fields(CycleSettings, skip=("mu",))}
+    out += ["", "[cycle]", *_lines(cycle)]
+    for name, params in spec.effects.items():
+        out += ["", f"[effects.{json.dumps(name, ensure_ascii=False)}]", *_lines(params)]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(out) + "\n", encoding="utf-8")
+    return path
+
+
+def with_clearance(spec: ModelSpec, clearance_mm: float) -> HingeParams:
+    """Return the spec's hinge parameters at another radial clearance (general hinge).
+
+    Raises:
+        ParameterError: For a hinge kind without clearance, or an out-of-range value.
+    """
+    if not isinstance(spec.hinge, GeneralHingeParams):
+        raise ParameterError(f"the {spec.kind} hinge has no clearance_mm")
+    return dataclasses.replace(spec.hinge, clearance_mm=clearance_mm)

@@ -1,0 +1,265 @@
+"""Pictures of a comparison: loops with residuals, error map, residuals, fingerprint.
+
+All functions draw on a bare ``Figure`` (Agg canvas, no pyplot state) into a PNG and return its path. Displacements
+are shown in µm (hinge loops span a few µm to a few tens of µm).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.colors import TwoSlopeNorm
+from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+from validation.compare import METRIC_LABELS, METRICS, CaseComparison, Comparison
+from validation.loops import branch_residuals
+
+UM_PER_MM = 1e3
+DESIGN_VARIABLES = (
+    ("clearance_mm", "clearance Δr [mm]"),
+    ("preload_n", "preload [N]"),
+    ("amplitude_n", "amplitude Fg [N]"),
+)
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def _title(c: CaseComparison) -> str:
+    k = c.case
+    verdict = "pass" if c.passed else "FAIL: " + ", ".join(METRIC_LABELS[m] for m in c.failed)
+    return (
+        f"{k.case_id}: Δr = {k.clearance_mm:g} mm, preload = {k.preload_n:g} N, "
+        f"Fg = {k.amplitude_n:g} N\n{verdict}"
+    )
+
+
+def plot_case_loops(c: CaseComparison, path: Path) -> Path:
+    """Overlay the measured and the model loop, with the residual along both branches below.
+
+    Args:
+        c: One case with a measured loop.
+        path: PNG to write.
+
+    Returns:
+        ``path``.
+    """
+    fig = Figure(figsize=(7.0, 7.0), layout="constrained")
+    ax, ax_r = fig.subplots(2, 1, height_ratios=(3, 1.4))
+    mod = c.model_loop
+    meas = c.measured_loop
+    if meas is not None:
+        ax.plot(
+            meas.displacement_mm * UM_PER_MM,
+            meas.force_n,
+            ".",
+            ms=2.5,
+            color="0.45",
+            label=f"measured ({meas.force_n.size} samples)",
+        )
+    ax.plot(
+        mod.displacement_mm * UM_PER_MM,
+        mod.force_n,
+        "-o",
+        ms=3,
+        lw=1.4,
+        color="C3",
+        label="model",
+    )
+    ax.axhline(0, color="0.8", lw=0.6, zorder=0)
+    ax.axvline(0, color="0.8", lw=0.6, zorder=0)
+    ax.set_xlabel("displacement δ [µm]")
+    ax.set_ylabel("force F [N]")
+    text = [f"η: model {c.model['eta']:.4f}, measured {c.measured['eta']:.4f}"]
+    if c.rms_loop_mm is not None:
+        text.append(f"RMS loop distance {c.rms_loop_mm * UM_PER_MM:.3g} µm")
+    ax.text(0.02, 0.97, "\n".join(text), transform=ax.transAxes, va="top", fontsize=9)
+    ax.legend(loc="lower right", fontsize=9)
+    ax.set_title(_title(c), fontsize=9.5)
+    if meas is not None:
+        grid, r_down, r_up = branch_residuals(meas, mod)
+        ax_r.plot(grid, r_down * UM_PER_MM, color="C0", label="descending +Fg → −Fg")
+        ax_r.plot(grid, r_up * UM_PER_MM, color="C1", label="ascending −Fg → +Fg")
+        ax_r.axhline(0, color="0.6", lw=0.6)
+        ax_r.legend(fontsize=8, loc="best")
+    else:
+        ax_r.text(0.5, 0.5, "η only: no measured loop", ha="center", transform=ax_r.transAxes)
+    ax_r.set_xlabel("force F [N]")
+    ax_r.set_ylabel("δ model − measured [µm]\n(each loop centred)", fontsize=8.5)
+    return _save(fig, path)
+
+
+def _design_axes(cmp: Comparison) -> tuple[str, str]:
+    """Pick the design variable that varies (clearance, else preload) for the map's y axis."""
+    clear = {c.case.clearance_mm for c in cmp.cases}
+    pre = {c.case.preload_n for c in cmp.cases}
+    y = "preload_n" if len(pre) > 1 and len(clear) == 1 else "clearance_mm"
+    return "amplitude_n", y
+
+
+def plot_error_map(cmp: Comparison, path: Path, metric: str = "eta") -> Path:
+    """Draw the error of one metric over the design space (amplitude × clearance or preload).
+
+    Each case is a marker coloured by its error (diverging map centred on 0), circled
+    when it passes and crossed when it fails; the label is the error in %.
+    """
+    xk, yk = _design_axes(cmp)
+    have = [c for c in cmp.cases if metric in c.errors]
+    x = np.array([getattr(c.case, xk) for c in have])
+    y = np.array([getattr(c.case, yk) for c in have])
+    e = np.array([c.errors[metric] for c in have]) * 100
+    lim = max(float(np.max(np.abs(e))) if e.size else 1.0, 1e-9)
+    fig = Figure(figsize=(7.0, 5.0), layout="constrained")
+    ax = fig.subplots()
+    sc = ax.scatter(x, y, c=e, s=260, cmap="RdBu_r", norm=TwoSlopeNorm(0.0, -lim, lim))
+    for c, xi, yi, ei in zip(have, x, y, e, strict=True):
+        if c.passed:
+            ax.scatter(xi, yi, s=420, marker="o", facecolors="none", edgecolors="k", linewidths=1.2)
+        else:
+            ax.scatter(xi, yi, s=420, marker="x", color="k", linewidths=1.5)
+        ax.annotate(
+            f"{ei:+.1f} %\n{c.case.case_id}",
+            (xi, yi),
+            xytext=(0, 17),
+            textcoords="offset points",
+            ha="center",
+            fontsize=8,
+        )
+    fig.colorbar(sc, ax=ax, label=f"{METRIC_LABELS[metric]} error (model − measured) [%]")
+    ax.set_xlabel(dict(DESIGN_VARIABLES)[xk])
+    ax.set_ylabel(dict(DESIGN_VARIABLES)[yk])
+    ax.margins(0.25)
+    ax.set_title(f"{METRIC_LABELS[metric]} error over the design space (○ pass, × fail)")
+    return _save(fig, path)
+
+
+def plot_residuals(cmp: Comparison, path: Path) -> Path:
+    """Draw every metric's error against each design variable that varies, with the ±kσ band."""
+    variables = [
+        (k, label)
+        for k, label in DESIGN_VARIABLES
+        if len({getattr(c.case, k) for c in cmp.cases}) > 1
+    ] or [DESIGN_VARIABLES[2]]
+    metrics = [m for m in METRICS if any(m in c.errors for c in cmp.cases)]
+    fig = Figure(
+        figsize=(max(3.6 * len(variables) + 1.0, 6.5), 1.9 * len(metrics) + 0.9),
+        layout="constrained",
+    )
+    axes = fig.subplots(len(metrics), len(variables), squeeze=False, sharex="col")
+    k = cmp.settings.k
+    for i, m in enumerate(metrics):
+        have = [c for c in cmp.cases if m in c.errors]
+        e = np.array([c.errors[m] for c in have]) * 100
+        band = np.array([k * c.uncertainty[m] for c in have]) * 100
+        for j, (var, label) in enumerate(variables):
+            ax = axes[i, j]
+            x = np.array([getattr(c.case, var) for c in have])
+            ok = np.array([m not in c.failed for c in have])
+            ax.errorbar(x, e, yerr=band, fmt="none", ecolor="0.6", capsize=3, lw=1)
+            ax.plot(x[ok], e[ok], "o", color="C2", ms=5, label="within kσ")
+            ax.plot(x[~ok], e[~ok], "X", color="C3", ms=7, label="outside kσ")
+            ax.axhline(0, color="0.5", lw=0.7)
+            ax.margins(x=0.15)
+            if j == 0:
+                ax.set_ylabel(f"{METRIC_LABELS[m]}\nerror [%]", fontsize=9)
+            if i == len(metrics) - 1:
+                ax.set_xlabel(label)
+    axes[0, 0].legend(fontsize=7, loc="best")
+    fig.suptitle(f"Errors (model − measured) against the design variables\nbars: ±{k:g}σ")
+    return _save(fig, path)
+
+
+def plot_fingerprint(cmp: Comparison, path: Path) -> Path:
+    """Draw W and η against amplitude on log–log axes, measured and model, with fitted slopes."""
+    fig = Figure(figsize=(11.0, 4.6), layout="constrained")
+    ax_w, ax_e = fig.subplots(1, 2)
+    fits = {f.group: f for f in cmp.fingerprint}
+    groups: dict[str, list[CaseComparison]] = {}
+    for c in cmp.cases:
+        key = f"{c.case.hinge}, Δr = {c.case.clearance_mm:g} mm, preload = {c.case.preload_n:g} N"
+        groups.setdefault(key, []).append(c)
+    for g, (name, members) in enumerate(groups.items()):
+        color = f"C{g % 10}"
+        amps = np.array([c.case.amplitude_n for c in members])
+        fit = fits.get(name)
+        for ax, key, what in ((ax_w, "W_cycle_Nmm", "W"), (ax_e, "eta", "eta")):
+            for side, marker, ls in (("measured", "o", ":"), ("model", "s", "-")):
+                v = np.array([getattr(c, side).get(key, math.nan) for c in members])
+                ok = np.isfinite(v) & (v > 0)
+                if not ok.any():
+                    continue
+                slope = math.nan if fit is None else getattr(fit, f"slope_{what}_{side}")
+                lab = f"{side}, {name}" + ("" if math.isnan(slope) else f": slope {_fmt(slope)}")
+                ax.plot(
+                    amps[ok],
+                    v[ok],
+                    marker,
+                    color=color,
+                    mfc="none" if side == "model" else color,
+                    label=lab,
+                )
+                if not math.isnan(slope) and ok.sum() >= 2:
+                    xs = np.sort(amps[ok])
+                    c0 = np.mean(np.log(v[ok]) - slope * np.log(amps[ok]))
+                    ax.plot(xs, np.exp(c0) * xs**slope, ls, color=color, lw=1)
+    for ax, ylabel in ((ax_w, "loop area W_cycle [N·mm]"), (ax_e, "loss factor η")):
+        _log_axes(ax)
+        ax.set_xlabel("amplitude Fg [N]")
+        ax.set_ylabel(ylabel)
+        ax.grid(True, which="both", color="0.9")
+        ax.legend(fontsize=7.5, loc="best")
+    ax_w.set_title("W vs Fg (homogeneous model: slope 2)")
+    ax_e.set_title("η vs Fg (homogeneous model: slope 0)")
+    fig.suptitle("Fingerprint: measured (filled, dotted fit) and model (open, solid fit)")
+    return _save(fig, path)
+
+
+def _fmt(slope: float) -> str:
+    """Slope with two decimals and no "-0.00"."""
+    return f"{0.0 if abs(slope) < 0.005 else slope:.2f}"
+
+
+def _log_axes(ax: Axes) -> None:
+    """Make log–log axes that span at least a factor 4, ticks labelled as plain numbers.
+
+    The minimum span keeps round-off (η constant to 1e-14) from looking like a trend.
+    """
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    for axis, (lo, hi), setter in (
+        (ax.xaxis, ax.get_xlim(), ax.set_xlim),
+        (ax.yaxis, ax.get_ylim(), ax.set_ylim),
+    ):
+        if hi / lo < 4.0:
+            mid = math.sqrt(lo * hi)
+            lo, hi = mid / 2.0, mid * 2.0
+            setter(lo, hi)
+        plain = FuncFormatter(lambda v, _: f"{v:.3g}")
+        axis.set_major_formatter(plain)
+        decades = math.log10(hi / lo)
+        if decades < 1.5:
+            subs = (2.0, 3.0, 4.0, 6.0, 8.0) if decades < 1.0 else (2.0, 5.0)
+            axis.set_minor_locator(LogLocator(subs=subs))
+            axis.set_minor_formatter(plain)
+        else:
+            axis.set_minor_formatter(NullFormatter())
+
+
+def write_comparison_plots(cmp: Comparison, out: Path) -> dict[str, Path]:
+    """Write every picture of a comparison under ``out``; return name → path."""
+    files = {
+        f"loop_{c.case.case_id}": plot_case_loops(c, out / "loops" / f"{c.case.case_id}.png")
+        for c in cmp.cases
+        if c.measured_loop is not None
+    }
+    files["error_map"] = plot_error_map(cmp, out / "error_map.png")
+    files["residuals"] = plot_residuals(cmp, out / "residuals.png")
+    files["fingerprint"] = plot_fingerprint(cmp, out / "fingerprint.png")
+    return files
