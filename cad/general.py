@@ -158,12 +158,17 @@ def _ring_faces(r_in: float, r_out: float) -> tuple[bd.Face, ...]:
 
 
 def _disk_faces(radius: float) -> tuple[bd.Face, ...]:
-    """An O-grid disk: a centre square and four patches reaching the circle."""
+    """An O-grid disk: a centre square and four patches reaching the circle.
+
+    The patches span 0–90°, 90–180°, …, so every arc ends on the load line (±x), where
+    the mesher can concentrate nodes toward the contact (``MeshSettings.arc_grading``).
+    """
     rho = 0.5 * radius  # half-diagonal of the centre square
-    corners = [_polar(rho, a) for a in (-45.0, 45.0, 135.0, 225.0)]
+    starts = (0.0, 90.0, 180.0, 270.0)
+    corners = [_polar(rho, a) for a in starts]
     square = bd.make_face([bd.Line(corners[i], corners[(i + 1) % 4]) for i in range(4)])
     faces = [_single_face(square, "pin core")]
-    for i, a in enumerate((-45.0, 45.0, 135.0, 225.0)):
+    for i, a in enumerate(starts):
         edges = [
             bd.CenterArc((0, 0), radius, a, 90.0),
             bd.Line(_polar(radius, a + 90.0), corners[(i + 1) % 4]),

@@ -155,6 +155,15 @@ def project_on_facets(
     return best_f, np.clip(best_x, -1.0, 1.0), best_d
 
 
+def closest_point(surface: Cylinder, x: FloatArray) -> FloatArray:
+    """Closest points on an exact surface, shape (m, 3) [mm].
+
+    ``x − g n`` with g the signed distance and n the outward normal: a point at distance
+    g on the non-material side moves back along −n onto the surface.
+    """
+    return x - surface.distance_outside(x)[:, None] * surface.outward_normal(x)
+
+
 def contact_geometry(mesh: HexMesh, shift_mm: dict[str, FloatArray]) -> ContactGeometry:
     """Build the contact points of every contact pair in a configuration.
 
@@ -183,7 +192,7 @@ def contact_geometry(mesh: HexMesh, shift_mm: dict[str, FloatArray]) -> ContactG
         t1 = np.cross(axis, n)
         t1 /= np.linalg.norm(t1, axis=1)[:, None]
         t2 = np.cross(n, t1)
-        foot = x + g0[:, None] * n  # closest point on the exact master surface
+        foot = closest_point(master, x)
         facets = mesh.facet_sets[pair.master]
         f, s, _ = project_on_facets(foot, np.asarray(mesh.nodes), facets)
         parts.append(

@@ -94,7 +94,9 @@ def mesh_part(model: HingeModel, part: Part, s: MeshSettings) -> tuple[FloatArra
     """
     if part.sweep is not None:
         circles = _contact_sizes(model, part, s)
-        profile = mesh_profile(part.sweep, s.size_for(part.name), circles)
+        profile = mesh_profile(
+            part.sweep, s.size_for(part.name), circles, arc_grading=s.arc_grading
+        )
         return extrude(profile, part.sweep, _slab_dz(model, part, s, circles))
     from mesh.volume import mesh_solid_hex  # only volume-meshed parts need it
 

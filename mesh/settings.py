@@ -19,6 +19,12 @@ class MeshSettings:
         refinement: Refinement level; each level halves every size.
         part_sizes_mm: Per-part global sizes at level 0 as (name fragment, size) pairs;
             the first fragment found in a part's name wins, other parts use ``size_mm``.
+        arc_grading: Ratio of the longest to the shortest element along the structured
+            arcs around pin and holes, shortest at the load line (θ = 0°, 180°), where a
+            pin with clearance touches over a few degrees only (1 = uniform). With a
+            uniform mesh the contact at Δr = 0.1 mm is one node row wide and η loses its
+            amplitude dependence; graded 6×, η at 400 N agrees within 1.5 % with a mesh
+            of twice the contact points (closing note of issue 3).
     """
 
     size_mm: float = 3.0
@@ -26,6 +32,7 @@ class MeshSettings:
     slave_ratio: float = 1.5
     refinement: int = 0
     part_sizes_mm: tuple[tuple[str, float], ...] = ()
+    arc_grading: float = 6.0
 
     def __post_init__(self) -> None:
         check_range("size_mm", self.size_mm, 0.05, 50.0)
@@ -35,6 +42,7 @@ class MeshSettings:
             raise ParameterError(
                 f"refinement must be an integer in [0, 4], got {self.refinement!r}"
             )
+        check_range("arc_grading", self.arc_grading, 1.0, 100.0)
         for fragment, size in self.part_sizes_mm:
             check_range(f"part_sizes_mm[{fragment!r}]", size, 0.01, 50.0)
         if self.contact_size_mm > self.size_mm:

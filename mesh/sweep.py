@@ -58,13 +58,17 @@ class ProfileMesh:
     quad_face: IntArray
 
 
-def mesh_profile(sweep: Sweep, size_mm: float, circles: tuple[CircleSize, ...]) -> ProfileMesh:
+def mesh_profile(
+    sweep: Sweep, size_mm: float, circles: tuple[CircleSize, ...], *, arc_grading: float = 1.0
+) -> ProfileMesh:
     """Mesh the profile faces of a swept part into quadrilaterals with gmsh.
 
     Args:
         sweep: The part's profile faces and slabs.
         size_mm: Element size away from the circles [mm].
         circles: Circles to refine (contact edges), each with its own size.
+        arc_grading: Longest over shortest segment along structured arcs, shortest at
+            the load line (θ = 0°, 180°); 1 is uniform.
 
     Returns:
         The conforming quad mesh of all profile faces.
@@ -92,6 +96,7 @@ def mesh_profile(sweep: Sweep, size_mm: float, circles: tuple[CircleSize, ...]) 
                 gmsh,
                 2.0 * size_mm,
                 tuple(CircleSize(c.radius_mm, 2.0 * c.size_mm) for c in circles),
+                arc_grading,
             )
             gmsh.option.setNumber("Mesh.Algorithm", 8)  # frontal-Delaunay for quads
             gmsh.option.setNumber("Mesh.RecombineAll", 1)
@@ -127,12 +132,16 @@ def _map_surfaces(
     return owner
 
 
-def _set_sizes(gmsh: Any, size_mm: float, circles: tuple[CircleSize, ...]) -> None:
+def _set_sizes(
+    gmsh: Any, size_mm: float, circles: tuple[CircleSize, ...], arc_grading: float = 1.0
+) -> None:
     """Make four-sided faces transfinite and grade the other faces toward the circles.
 
     Counts on a transfinite face: an arc or a chord subtending angle θ at the pin axis
     gets ceil(θ·R_c / s_c) segments (R_c, s_c: the first circle's radius and size), so
     opposite sides of every quarter patch match; a radial line gets segments of 1.5 s_c.
+    Arcs and chords are graded geometrically by ``arc_grading`` (longest/shortest),
+    shortest at the end nearest the load line (the x axis).
     """
     g = gmsh
     g.option.setNumber("Mesh.MeshSizeFromPoints", 0)
@@ -146,7 +155,9 @@ def _set_sizes(gmsh: Any, size_mm: float, circles: tuple[CircleSize, ...]) -> No
         if len(curves) != 4:
             continue
         for tag in curves:
-            g.model.mesh.setTransfiniteCurve(tag, _segments(g, tag, r_c, s_c) + 1)
+            n = _segments(g, tag, r_c, s_c)
+            coef = _progression(g, tag, n, arc_grading, 2.0 * r_c)
+            g.model.mesh.setTransfiniteCurve(tag, n + 1, "Progression", coef)
         g.model.mesh.setTransfiniteSurface(surface)
     fields = []
     for c in circles:
@@ -188,6 +199,25 @@ def _segments(gmsh: Any, tag: int, r_c: float, s_c: float) -> int:
     cos_theta = float(ends[0, :2] @ ends[1, :2]) / max(float(r[0] * r[1]), 1e-300)
     theta = math.acos(max(-1.0, min(1.0, cos_theta)))
     return max(2, math.ceil(theta * r_c / s_c - 1e-9))
+
+
+def _progression(gmsh: Any, tag: int, n: int, grading: float, r_max: float) -> float:
+    """Return the gmsh progression coefficient: segments grow by it from the curve's start.
+
+    Radial lines, and arcs farther than ``r_max`` from the axis (a lug's rounded end,
+    whose outline would turn visibly polygonal), stay uniform; arcs and chords near
+    the contact get ``grading**(1/(n-1))``, inverted when the curve starts away from the
+    load line so that the short segments sit on it.
+    """
+    lo, hi = gmsh.model.getParametrizationBounds(1, tag)
+    ends = np.asarray(gmsh.model.getValue(1, tag, [lo[0], hi[0]])).reshape(2, 3)
+    r = np.hypot(ends[:, 0], ends[:, 1])
+    radial = abs(r[0] - r[1]) > 1e-6 * max(r.max(), 1.0)
+    if grading == 1.0 or n < 2 or radial or r.max() > r_max:
+        return 1.0
+    q = float(grading ** (1.0 / (n - 1)))
+    sin_start, sin_end = abs(ends[0, 1]) / max(r[0], 1e-300), abs(ends[1, 1]) / max(r[1], 1e-300)
+    return q if sin_start <= sin_end else 1.0 / q
 
 
 def _collect_quads(gmsh: Any, face_of_surface: dict[int, int]) -> ProfileMesh:

@@ -21,6 +21,7 @@ SUBCOMMAND_MODULES = (
     "studies.cmd_rsm",
     "studies.cmd_trace",
     "studies.cmd_sweep",
+    "studies.cmd_compare",
 )
 
 

@@ -51,7 +51,7 @@ def settings_from_args(args: argparse.Namespace) -> MeshSettings:
         kw["size_mm"] = args.size
     if args.contact_size is not None:
         kw["contact_size_mm"] = args.contact_size
-    return MeshSettings(**kw)  # type: ignore[arg-type]
+    return MeshSettings.for_hinge(args.hinge, **kw)
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

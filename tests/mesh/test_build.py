@@ -36,9 +36,14 @@ def ring_count(mesh: HexMesh, name: str, radius: float) -> int:
 
 
 def test_pin_mesh_volume_is_the_inscribed_polygon_prism(meshed, params):
+    # The pin's section is the polygon inscribed in its circle through the surface nodes
+    # (graded, so irregular): area ½ R² Σ sin Δθ_i, exactly.
     mesh, report = meshed
-    n = ring_count(mesh, "pin_tang", params.pin_radius_mm)
-    polygon = 0.5 * n * params.pin_radius_mm**2 * math.sin(2 * math.pi / n)
+    xyz = mesh.nodes[mesh.set_nodes("pin_tang")]
+    ring = xyz[np.isclose(xyz[:, 2], xyz[:, 2].min())]
+    theta = np.sort(np.arctan2(ring[:, 1], ring[:, 0]))
+    dtheta = np.diff(np.append(theta, theta[0] + 2 * math.pi))
+    polygon = 0.5 * params.pin_radius_mm**2 * np.sin(dtheta).sum()
     assert report.parts["pin"]["mesh_volume_mm3"] == pytest.approx(
         polygon * params.pin_length, rel=1e-9
     )
