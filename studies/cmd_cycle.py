@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -20,30 +21,37 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("cycle", help="run the 0 → +Fg → −Fg → +Fg cycle; write loop, η, fields")
     add_geometry_arguments(p)
     p.add_argument(
+        "--model",
+        type=Path,
+        default=None,
+        metavar="MODEL.toml",
+        help="run the model a model file describes (geometry, mesh, materials, μ, protocol)",
+    )
+    p.add_argument(
         "--amplitude",
         type=float,
-        default=400.0,
+        default=None,
         metavar="N",
         help="force amplitude Fg [N] (default 400)",
     )
     p.add_argument(
         "--mu",
         type=float,
-        default=DEFAULT_MU,
+        default=None,
         metavar="X",
         help=f"pin-hole friction coefficient (default {DEFAULT_MU}; the paper gives none)",
     )
     p.add_argument(
         "--increments",
         type=int,
-        default=20,
+        default=None,
         metavar="N",
         help="increments per half cycle (default 20)",
     )
     p.add_argument(
         "--cycles",
         type=int,
-        default=1,
+        default=None,
         metavar="N",
         help="closed loops after the first loading (default 1)",
     )
@@ -62,26 +70,27 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab cycle``."""
-    from fe.cycle import CycleSettings, run_cycle
+    from fe.cycle import run_cycle
     from fe.hinge_system import build_system
     from fe.report import write_loop_csv, write_loop_png, write_time_series
 
     t0 = time.perf_counter()
-    if args.hinge != "general":
-        raise ParameterError(
-            f"cycle supports --hinge general only for now, got --hinge {args.hinge}"
-        )
-    settings = CycleSettings(
-        amplitude_n=args.amplitude,
-        mu=args.mu,
-        increments_per_stage=args.increments,
-        n_cycles=args.cycles,
-    )
     if args.frames < 0:
         raise ParameterError(f"frames must be ≥ 0, got {args.frames}")
-    model = make_model(args.hinge, clearance_mm=args.clearance)
+    model, mesh_settings, base = _model_from_args(args)
+    overrides = {
+        k: v
+        for k, v in {
+            "amplitude_n": args.amplitude,
+            "mu": args.mu,
+            "increments_per_stage": args.increments,
+            "n_cycles": args.cycles,
+        }.items()
+        if v is not None
+    }
+    settings = dataclasses.replace(base, **overrides)
     clearance = float(model.params.clearance_mm)
-    meshed = build_and_mesh(model, settings_from_args(args), args.out)
+    meshed = build_and_mesh(model, mesh_settings, args.out)
     system = build_system(meshed.mesh)
     bar = _progress_bar(args)
     result = run_cycle(system, clearance, settings, progress=None if bar is None else bar.update_to)
@@ -93,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         write_loop_png(
             result,
             args.out / "loop.png",
-            title=f"general hinge, Δr = {clearance:g} mm, Fg = {args.amplitude:g} N, μ = {args.mu:g}",
+            title=f"general hinge, Δr = {clearance:g} mm, Fg = {settings.amplitude_n:g} N, μ = {settings.mu:g}",
         )
     )
     if args.frames:
@@ -114,6 +123,42 @@ def run(args: argparse.Namespace) -> int:
             f"results in {args.out}/ (loop.csv, loop.png, result.json, fields/cycle.pvd, mesh files)"
         )
     return 0
+
+
+def _model_from_args(args: argparse.Namespace) -> tuple[Any, Any, Any]:
+    """Return (HingeModel, MeshSettings, CycleSettings) from a model file or the options."""
+    from cad.general import make_general_hinge
+    from fe.cycle import CycleSettings
+
+    if args.model is None:
+        if args.hinge != "general":
+            raise ParameterError(
+                f"cycle supports --hinge general only for now, got --hinge {args.hinge}"
+            )
+        model = make_model(args.hinge, clearance_mm=args.clearance)
+        return model, settings_from_args(args), CycleSettings()
+    from validation.model_file import read_model
+
+    given = [
+        f"--{n}"
+        for n in ("clearance", "preload", "size", "contact_size")
+        if getattr(args, n) is not None
+    ]
+    if given or args.refinement != 0 or args.hinge != "general":
+        raise ParameterError(
+            f"--model describes the geometry and mesh; drop {given or ['--hinge/--refinement']} "
+            "(only --amplitude, --mu, --increments, --cycles may override it)"
+        )
+    spec = read_model(args.model)
+    if spec.kind != "general":
+        raise ParameterError(
+            f"cycle supports kind = 'general' only for now, got {spec.kind!r} in {args.model}"
+        )
+    if spec.effects:
+        raise ParameterError(
+            f"{args.model}: effects are not wired into 'cycle' yet: {sorted(spec.effects)}"
+        )
+    return make_general_hinge(spec.hinge), spec.mesh, spec.cycle
 
 
 def _progress_bar(args: argparse.Namespace) -> Any:

@@ -70,3 +70,62 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
 def test_cycle_bad_input(tmp_path, capsys, argv, needle):
     assert main(["cycle", *argv, "--out", str(tmp_path), "--no-progress"]) == 1
     assert needle in capsys.readouterr().err
+
+
+MODEL = """[hinge]
+kind = "general"
+clearance_mm = 0.05
+
+[mesh]
+size_mm = 4.0
+contact_size_mm = 2.0
+
+[friction]
+mu = 0.15
+
+[cycle]
+amplitude_n = 250.0
+increments_per_stage = 6
+"""
+
+
+def test_cycle_runs_a_model_file_and_takes_overrides(tmp_path, capsys):
+    model = tmp_path / "MODEL.toml"
+    model.write_text(MODEL)
+    argv = [
+        "cycle",
+        "--model",
+        str(model),
+        "--out",
+        str(tmp_path / "o"),
+        "--frames",
+        "0",
+        "--json",
+        "--no-progress",
+    ]
+    assert main(argv) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert (out["amplitude_N"], out["mu"], out["clearance_mm"]) == (250.0, 0.15, 0.05)
+    assert main([*argv, "--amplitude", "120"]) == 0
+    assert json.loads(capsys.readouterr().out)["amplitude_N"] == 120.0
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [(MODEL.replace("mu = 0.15", "mu = -1"), "mu"), (MODEL + "\n[hinge2]\nx = 1\n", "hinge2")],
+    ids=["out-of-range", "unknown-section"],
+)
+def test_cycle_refuses_bad_model_files(tmp_path, capsys, text, needle):
+    model = tmp_path / "MODEL.toml"
+    model.write_text(text)
+    assert (
+        main(["cycle", "--model", str(model), "--out", str(tmp_path / "o"), "--no-progress"]) == 1
+    )
+    assert needle in capsys.readouterr().err
+
+
+def test_model_file_excludes_geometry_options(tmp_path, capsys):
+    model = tmp_path / "MODEL.toml"
+    model.write_text(MODEL)
+    assert main(["cycle", "--model", str(model), "--clearance", "0.1", "--out", str(tmp_path)]) == 1
+    assert "--clearance" in capsys.readouterr().err
