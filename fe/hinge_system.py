@@ -34,9 +34,12 @@ the centred pin would miss is included. The two configurations coincide at Δr =
 
 from __future__ import annotations
 
+import hashlib
 import logging
+import os
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
@@ -279,6 +282,7 @@ class HingeSystem:
     slave_nodes: IntArray
     master_nodes: IntArray
     timings_s: dict[str, float] = field(default_factory=dict)
+    cache_dir: Path | None = None
     _compliance: dict[str, FloatArray] = field(default_factory=dict, repr=False)
 
     def nodal_compliance(self) -> tuple[FloatArray, FloatArray]:
@@ -291,14 +295,33 @@ class HingeSystem:
         """
         if not self._compliance:
             t0 = time.perf_counter()
-            self._compliance["slave"] = _restricted_inverse(
-                self.pin_factor, self.pin_free, _dofs(self.slave_nodes)
-            )
-            self._compliance["master"] = _restricted_inverse(
-                self.lug_factor, self.lug_free, _dofs(self.master_nodes)
-            )
+            cached = self._cache_path()
+            if cached is not None and cached.exists():
+                with np.load(cached) as data:
+                    self._compliance = {"slave": data["slave"], "master": data["master"]}
+                logger.info("nodal compliance read from %s", cached)
+            else:
+                self._compliance["slave"] = _restricted_inverse(
+                    self.pin_factor, self.pin_free, _dofs(self.slave_nodes)
+                )
+                self._compliance["master"] = _restricted_inverse(
+                    self.lug_factor, self.lug_free, _dofs(self.master_nodes)
+                )
+                if cached is not None:
+                    _save_atomic(cached, self._compliance)
             self.timings_s["compliance"] = time.perf_counter() - t0
         return self._compliance["slave"], self._compliance["master"]
+
+    def _cache_path(self) -> Path | None:
+        """Cache file of the nodal compliances: keyed by the mesh's content and the supports."""
+        if self.cache_dir is None:
+            return None
+        key = hashlib.sha256(
+            (self.mesh.content_hash() + self.kind.value).encode() + self.pin_support.tobytes()
+        ).hexdigest()[:32]
+        return self.cache_dir / f"compliance_{key}.npz"
+
+    kind: ElementType = ElementType.INCOMPATIBLE
 
     @property
     def n_dof(self) -> int:
@@ -306,8 +329,17 @@ class HingeSystem:
         return 3 * self.mesh.n_nodes
 
 
-def build_system(mesh: HexMesh, kind: ElementType = ElementType.INCOMPATIBLE) -> HingeSystem:
+def build_system(
+    mesh: HexMesh, kind: ElementType = ElementType.INCOMPATIBLE, *, cache_dir: Path | None = None
+) -> HingeSystem:
     """Assemble and factorise the general hinge (tang + clevis with grips, supported pin).
+
+    Args:
+        mesh: A general hinge mesh.
+        kind: Element formulation.
+        cache_dir: Folder where the nodal compliances are kept by the mesh's content
+            hash, so another process (a sweep worker, a diagnosis, a rerun) reads them
+            instead of solving again; None keeps them in memory only.
 
     Raises:
         MeshQualityError: If the mesh lacks the parts or faces of a general hinge.
@@ -359,7 +391,17 @@ def build_system(mesh: HexMesh, kind: ElementType = ElementType.INCOMPATIBLE) ->
         slave_nodes,
         master_nodes,
         {"assembly": t_asm, "factorisation": t_fac},
+        cache_dir=cache_dir,
+        kind=kind,
     )
+
+
+def _save_atomic(path: Path, arrays: dict[str, FloatArray]) -> None:
+    """Write an .npz so that a reader never sees a half-written file (write, then rename)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
+    np.savez(tmp, slave=arrays["slave"], master=arrays["master"])
+    os.replace(tmp, path)
 
 
 def _restricted_inverse(factor: Factorization, free: IntArray, dofs: IntArray) -> FloatArray:

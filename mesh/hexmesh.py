@@ -19,6 +19,7 @@ body they bound, so the right-hand normal points out of the material.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -167,6 +168,25 @@ class HexMesh:
             np.add.at(node_normal, inv[:, k], normals * (area / 4.0)[:, None])
         node_normal /= np.maximum(np.linalg.norm(node_normal, axis=1), 1e-300)[:, None]
         return ids.astype(np.int64), node_area, node_normal
+
+    def content_hash(self) -> str:
+        """Return a SHA-256 of everything that defines the mesh as a model.
+
+        Nodes, connectivity, parts, materials, named sets, exact surfaces and pairs: two
+        meshes with the same hash give the same stiffness and contact geometry, so
+        results computed from one (e.g. a condensed compliance) are valid for the other.
+        """
+        h = hashlib.sha256()
+        for arr in (self.nodes, self.hexes, self.elem_part):
+            h.update(np.ascontiguousarray(arr).tobytes())
+        h.update(repr((self.part_names, self.materials, self.surfaces, self.pairs)).encode())
+        for name in sorted(self.facet_sets):
+            h.update(name.encode())
+            h.update(np.ascontiguousarray(self.facet_sets[name]).tobytes())
+        for name in sorted(self.node_sets):
+            h.update(name.encode())
+            h.update(np.ascontiguousarray(self.node_sets[name]).tobytes())
+        return h.hexdigest()
 
     def summary(self) -> dict[str, object]:
         """Return a JSON-ready summary: element and node counts, part sizes, set sizes."""

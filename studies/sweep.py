@@ -13,6 +13,7 @@ Layout of ``out``::
     trace.sqlite                    the trace (rsm.trace schema)
     table.csv                       one row per ok point: point_id, parameters, results
     geometry/c0.100/                hinge.step, mesh.msh, mesh.vtu, mesh.png
+    cache/                          nodal compliances by mesh content hash (safe to delete)
     points/c0.100_F300/             loop.csv, loop.png, result.json
 """
 
@@ -95,7 +96,7 @@ def run_geometry(
     try:
         model = make_model("general", clearance_mm=clearance_mm)
         meshed = build_and_mesh(model, settings.mesh, out / "geometry" / f"c{clearance_mm:.3f}")
-        system = build_system(meshed.mesh)
+        system = build_system(meshed.mesh, cache_dir=out / "cache")
         r = meshed.report
         mesh_stats = {
             "n_hex": r.n_hex,

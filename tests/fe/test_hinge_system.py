@@ -53,3 +53,22 @@ def test_gaps_are_exact_and_projections_land_on_the_master():
     assert np.abs(np.angle(np.exp(1j * angle))).max() < 0.05
     assert np.allclose(np.linalg.norm(geo.frame, axis=2), 1.0)
     assert np.allclose(np.einsum("mi,mi->m", geo.frame[:, 0], geo.frame[:, 1]), 0.0, atol=1e-12)
+
+
+def test_compliance_cache_is_keyed_by_mesh_content(tmp_path):
+    from fe.hinge_system import build_system
+
+    settings = MeshSettings(size_mm=4.0, contact_size_mm=2.0)
+    mesh, _ = mesh_hinge(make_general_hinge(GeneralHingeParams()), settings)
+    first = build_system(mesh, cache_dir=tmp_path)
+    s1, m1 = first.nodal_compliance()
+    assert len(list(tmp_path.glob("compliance_*.npz"))) == 1
+    second = build_system(mesh, cache_dir=tmp_path)  # another process would do the same
+    s2, m2 = second.nodal_compliance()
+    assert np.array_equal(s1, s2)
+    assert np.array_equal(m1, m2)
+    other, _ = mesh_hinge(make_general_hinge(GeneralHingeParams(clearance_mm=0.1)), settings)
+    assert other.content_hash() != mesh.content_hash()
+    build_system(other, cache_dir=tmp_path).nodal_compliance()
+    assert len(list(tmp_path.glob("compliance_*.npz"))) == 2
+    assert not list(tmp_path.glob(".*tmp*"))
