@@ -51,8 +51,34 @@ HINGE_PARAMS: dict[str, type[GeneralHingeParams] | type[BearingHingeParams]] = {
 }
 """Hinge kind → its parameter dataclass."""
 
-EffectRegistry = Mapping[str, Mapping[str, tuple[float, float]]]
-"""Effect name → parameter name → (lowest, highest) allowed value."""
+
+class _Param(typing.Protocol):
+    name: str
+    lo: float
+    hi: float
+
+
+class _Effect(typing.Protocol):
+    @property
+    def params(self) -> tuple[_Param, ...]: ...
+
+
+EffectRegistry = Mapping[str, Mapping[str, tuple[float, float]]] | Mapping[str, _Effect]
+"""Effect name → parameter name → (lowest, highest) allowed value; or effect name → an
+object with ``params`` (``fe.effects.REGISTRY``: each ParamSpec gives name, lo, hi)."""
+
+
+def _ranges(registry: EffectRegistry) -> dict[str, Mapping[str, tuple[float, float]]]:
+    """Return effect → parameter → (lo, hi) from either registry shape."""
+    out: dict[str, Mapping[str, tuple[float, float]]] = {}
+    for name, entry in registry.items():
+        params = getattr(entry, "params", None)
+        if params is None:
+            out[name] = typing.cast(Mapping[str, tuple[float, float]], entry)
+        else:
+            out[name] = {p.name: (p.lo, p.hi) for p in params}
+    return out
+
 
 NO_EFFECTS: EffectRegistry = types.MappingProxyType({})
 """The registry until the first physical effect is written (every [effects.*] is refused)."""
@@ -189,6 +215,7 @@ def _read_materials(cls: Any, table: Mapping[str, Any], path: Path) -> dict[str,
 def _read_effects(
     table: Mapping[str, Any], registry: EffectRegistry, path: Path
 ) -> dict[str, dict[str, float]]:
+    registry = _ranges(registry)
     known = ", ".join(registry) or "(none yet)"
     out = {}
     for name, params in table.items():
@@ -218,7 +245,8 @@ def read_model(path: Path | str, registry: EffectRegistry = NO_EFFECTS) -> Model
 
     Args:
         path: The file.
-        registry: Known effects and their parameter ranges.
+        registry: Known effects and their parameter ranges (``fe.effects.REGISTRY`` or
+            effect → parameter → (lo, hi)).
 
     Returns:
         The model.

@@ -1,0 +1,517 @@
+"""Candidate physical effects that extend the baseline hinge model (elasticity + Coulomb contact).
+
+An effect acts in one (or both) of two places, so that none of them needs a new mesh or a
+new factorisation:
+
+* ``apply(configs, values)`` on the condensed system ``w = W p + G α + w0`` of each
+  touching configuration (``fe.hinge_system.Condensed``): it returns new ``Condensed``
+  objects (``dataclasses.replace``), never modifies its input. Interface compliances add
+  to the diagonal blocks of ``W``; an interference shifts the normal gap ``w0``.
+* ``post(force_n, disp_mm, values)`` on the computed loop: a displacement in series with
+  the hinge, a function of the force only (it must map F = 0 to 0).
+
+``run_cycle_with_effects`` applies the enabled effects to the configurations (condensed
+once per mesh and clearance, reusable for every amplitude and effect), runs
+``fe.cycle.run_cycle`` and post-processes its increments, so the returned loop and its
+metrics (η, U_max, the energy balance) are consistent.
+
+Fingerprints: each effect's docstring gives a table measured on the coarse test mesh
+(``MeshSettings(size_mm=4.0, contact_size_mm=2.0)``, 6 increments per stage, μ = 0.2),
+baseline vs effect, η and δ(+Fg) [µm] at Fg = 100 and 400 N and Δr = 0 and 0.1 mm
+(``tests/fe/test_effects.py::fingerprint_table`` regenerates it; the slow test
+``test_docstring_fingerprints_are_measured`` checks every row to 2 %), each effect at its
+parameter's default strength, 40 increments per stage (with clearance, fewer increments
+leave a first-order open/close work in the loop area: at 6 per stage η at Δr = 0.1 mm
+is off by a factor 2). Baseline: Δr = 0: η = 0.01376 at both amplitudes (positively
+homogeneous); Δr = 0.1 mm: η = 0.00073 / 0.00128 at 100 / 400 N.
+
+Not in the registry yet: friction between the tang and clevis faces under the pin's axial
+clamp (``face_friction``) needs contact pairs on the axial faces, i.e. a new mesh and
+condensation, and is left for a later increment.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+import types
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from cad.errors import ParameterError
+from fe.contact import ContactSettings, ContactState, solve_increment
+from fe.cycle import CycleResult, CycleSettings, Increment, configurations, run_cycle
+from fe.hinge_system import Condensed, HingeSystem
+
+FloatArray = npt.NDArray[np.float64]
+Values = Mapping[str, float]
+"""Parameter name → value of one effect."""
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter of an effect.
+
+    Attributes:
+        name: Parameter name (with its unit, e.g. ``compliance_mm_per_n``).
+        lo: Lowest allowed value (the effect is off at ``lo`` = 0).
+        hi: Highest allowed value.
+        default: Value used when the parameter is not given (a typical strength).
+        unit: Unit, for reports.
+        doc: One line: what it is.
+    """
+
+    name: str
+    lo: float
+    hi: float
+    default: float
+    unit: str
+    doc: str
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.lo) and math.isfinite(self.hi) and self.lo <= self.hi):
+            raise ParameterError(
+                f"{self.name}: range must be finite with lo ≤ hi, got [{self.lo}, {self.hi}]"
+            )
+        if not self.lo <= self.default <= self.hi:
+            raise ParameterError(
+                f"{self.name}: default must be in [{self.lo:g}, {self.hi:g}], got {self.default:g}"
+            )
+
+
+def _map_configs(
+    configs: Mapping[int, Condensed], change: Callable[[Condensed], Condensed]
+) -> dict[int, Condensed]:
+    """Apply ``change`` to every configuration once, keeping shared ones shared (Δr = 0: +1 is −1)."""
+    done: dict[int, Condensed] = {}
+    out: dict[int, Condensed] = {}
+    for side, cond in configs.items():
+        if id(cond) not in done:
+            done[id(cond)] = change(cond)
+        out[side] = done[id(cond)]
+    return out
+
+
+def _add_diagonal(cond: Condensed, components: tuple[int, ...], c_mm3_per_n: float) -> Condensed:
+    """Return ``cond`` with ``W[3i+k, 3i+k] += c / A_i`` for k in ``components`` [mm/N]."""
+    W = np.array(cond.W, dtype=np.float64, copy=True)
+    m = len(cond.geo.slave)
+    add = c_mm3_per_n / cond.geo.area_mm2  # (m,) [mm/N]
+    for k in components:
+        idx = 3 * np.arange(m, dtype=np.int64) + k
+        W[idx, idx] += add
+    return dataclasses.replace(cond, W=W)
+
+
+@dataclass(frozen=True)
+class Effect:
+    """A physical effect: its parameters and two hooks, identities here.
+
+    Attributes:
+        name: Registry name.
+        params: Its parameters.
+    """
+
+    name: str
+    params: tuple[ParamSpec, ...]
+
+    def apply(self, configs: Mapping[int, Condensed], values: Values) -> dict[int, Condensed]:
+        """Return the configurations with the effect (new objects; the input is not modified).
+
+        Args:
+            configs: Side (+1 tension, −1 compression) → condensed configuration.
+            values: Parameter → value (validated, every parameter present).
+        """
+        return dict(configs)
+
+    def post(self, force_n: FloatArray, disp_mm: FloatArray, values: Values) -> FloatArray:
+        """Return the displacement seen at the grips, shape (n,) [mm] (a new array).
+
+        Args:
+            force_n: Force, shape (n,) [N].
+            disp_mm: Hinge displacement, shape (n,) [mm].
+            values: Parameter → value.
+        """
+        return np.array(disp_mm, dtype=np.float64, copy=True)
+
+
+@dataclass(frozen=True)
+class FrameCompliance(Effect):
+    """Series compliance of the test frame, load cell, grips and clevis pins.
+
+    MECHANISM: the crosshead (or LVDT across the grips) measures the hinge in series with
+    everything else in the load path; a linear spring ``C_f``: ``δ ← δ + C_f F``. It acts
+    after the solve (``post``), so ``W`` and every factorisation are untouched.
+
+    FINGERPRINT (C_f = 2e-5 mm/N): the loop is sheared — every point moves by
+    ``C_f F``, the loop area W_cycle is unchanged (∮F d(C_f F) = 0), δ(+Fg) grows by
+    exactly ``C_f Fg`` and ``η`` falls by ``δ_max / (δ_max + C_f Fg)``:
+
+    =======  =====  =======  =========  ==========  ============
+    Δr mm    Fg N   η base   η effect   δ+ base µm  δ+ effect µm
+    =======  =====  =======  =========  ==========  ============
+    0        100    0.01376  0.00390    0.96        2.96
+    0        400    0.01376  0.00390    3.84        11.84
+    0.1      100    0.00073  0.00034    2.09        4.09
+    0.1      400    0.00128  0.00054    7.33        15.33
+    =======  =====  =======  =========  ==========  ============
+
+    η vs amplitude: at Δr = 0 the model stays homogeneous: η is independent of Fg, only
+    lowered (×0.28 here). With Δr = 0.1 mm η falls by ×0.47 at 100 N and ×0.42 at 400 N,
+    so the η(Fg) curve keeps its shape and is scaled down; the loop's area is unchanged.
+    """
+
+    name: str = "frame_compliance"
+    params: tuple[ParamSpec, ...] = (
+        ParamSpec(
+            "compliance_mm_per_n", 0.0, 1e-4, 2e-5, "mm/N", "series compliance of frame and grips"
+        ),
+    )
+
+    def post(self, force_n: FloatArray, disp_mm: FloatArray, values: Values) -> FloatArray:
+        """Return ``δ + C_f F``, shape (n,) [mm]."""
+        return np.asarray(disp_mm, dtype=np.float64) + values["compliance_mm_per_n"] * np.asarray(
+            force_n, dtype=np.float64
+        )
+
+
+@dataclass(frozen=True)
+class RoughnessSoftening(Effect):
+    """Contact softening by surface roughness: a linear pressure–overclosure law.
+
+    MECHANISM: asperities of the turned pin and reamed holes deform before the nominal
+    surfaces meet; to first order a normal interface stiffness per unit area ``k_n``
+    (``p = k_n h`` for an overclosure h), i.e. a compliance ``c_n = 1/k_n`` [mm³/N] in
+    series with the bulk at every contact point: ``W_nn,ii += c_n / A_i`` (A_i the
+    slave nodal area). Only the diagonal normal entries change; no refactorisation. Linear,
+    so the zero-clearance model stays positively homogeneous (an exponential law would
+    break that, but needs the contact solver's normal law changed: not done).
+
+    FINGERPRINT (c_n = 2e-4 mm³/N, i.e. k_n = 5000 N/mm³): a softer loop (δ(+Fg) ×1.7 at
+    Δr = 0, ×2.2–2.6 at Δr = 0.1 mm) with a much larger area: the compliant layer lets
+    the stick zones slip more, so η rises (×2.5 at Δr = 0, ×4.8–5.1 at Δr = 0.1 mm). The
+    energy balance still closes to < 1e-12:
+
+    =======  =====  =======  =========  ==========  ============
+    Δr mm    Fg N   η base   η effect   δ+ base µm  δ+ effect µm
+    =======  =====  =======  =========  ==========  ============
+    0        100    0.01376  0.03441    0.96        1.63
+    0        400    0.01376  0.03441    3.84        6.53
+    0.1      100    0.00073  0.00350    2.09        5.34
+    0.1      400    0.00128  0.00647    7.33        16.29
+    =======  =====  =======  =========  ==========  ============
+
+    η vs amplitude: flat at Δr = 0 (homogeneous, as the baseline); with clearance η still
+    rises with Fg as in the baseline (0.0035 → 0.0065 for 0.00073 → 0.00128): the law is
+    linear, so it raises the level, not the amplitude slope.
+    """
+
+    name: str = "roughness_softening"
+    params: tuple[ParamSpec, ...] = (
+        ParamSpec(
+            "compliance_mm3_per_n",
+            0.0,
+            1e-3,
+            2e-4,
+            "mm³/N",
+            "normal interface compliance per unit area, 1/k_n (k_n ≥ 1000 N/mm³)",
+        ),
+    )
+
+    def apply(self, configs: Mapping[int, Condensed], values: Values) -> dict[int, Condensed]:
+        """Add ``c_n / A_i`` to each point's normal diagonal entry of ``W``."""
+        c = values["compliance_mm3_per_n"]
+        if c == 0.0:
+            return dict(configs)
+        return _map_configs(configs, lambda cond: _add_diagonal(cond, (0,), c))
+
+
+@dataclass(frozen=True)
+class TangentialCompliance(Effect):
+    """Shear compliance of the asperity layer (pre-sliding microslip of the asperities).
+
+    MECHANISM: before the nominal surfaces slip, the asperity junctions shear elastically:
+    a tangential interface stiffness per unit area ``k_t``, compliance ``c_t = 1/k_t``
+    [mm³/N]: ``W_tt,ii += c_t / A_i`` in both tangential directions. No refactorisation.
+
+    FINGERPRINT (c_t = 2e-4 mm³/N): the loop barely softens (δ(+Fg) +0.5–1 %) but
+    thins: the compliant layer takes up the tangential motion elastically, the surfaces
+    stick where they slipped, and η falls ×0.24 at Δr = 0; with Δr = 0.1 mm, where the
+    contact arc is narrow, slip almost vanishes (η ≈ 0 at 100 N, 0.00004 at 400 N):
+
+    =======  =====  =======  =========  ==========  ============
+    Δr mm    Fg N   η base   η effect   δ+ base µm  δ+ effect µm
+    =======  =====  =======  =========  ==========  ============
+    0        100    0.01376  0.00329    0.96        0.97
+    0        400    0.01376  0.00329    3.84        3.86
+    0.1      100    0.00073  0.00000    2.09        2.11
+    0.1      400    0.00128  0.00004    7.33        7.39
+    =======  =====  =======  =========  ==========  ============
+
+    η vs amplitude: flat at Δr = 0 (linear, homogeneous). With clearance η ≈ 0 at low Fg
+    and rises only once the arc slips: a threshold in η(Fg), like a preload, but with an
+    almost unchanged stiffness.
+    """
+
+    name: str = "tangential_compliance"
+    params: tuple[ParamSpec, ...] = (
+        ParamSpec(
+            "compliance_mm3_per_n",
+            0.0,
+            1e-3,
+            2e-4,
+            "mm³/N",
+            "tangential interface compliance per unit area, 1/k_t",
+        ),
+    )
+
+    def apply(self, configs: Mapping[int, Condensed], values: Values) -> dict[int, Condensed]:
+        """Add ``c_t / A_i`` to each point's two tangential diagonal entries of ``W``."""
+        c = values["compliance_mm3_per_n"]
+        if c == 0.0:
+            return dict(configs)
+        return _map_configs(configs, lambda cond: _add_diagonal(cond, (1, 2), c))
+
+
+@dataclass(frozen=True)
+class Interference(Effect):
+    """An initial radial pin–hole interference (a press or shrink fit, or a pin on the high side).
+
+    MECHANISM: the pin is larger than the hole by ``δ_i`` (radial): the normal gap at every
+    contact point starts at ``g0 − δ_i`` (``w0_n`` and ``geo.g0`` both shifted, so the seed
+    of a touching configuration sees it too). The overlap is resolved in the first load
+    increment from zero, which converges without a separate ramp (checked by the tests),
+    as a radial prestress that clamps the pin before any load. With Δr > 0 the same
+    overlap is applied in each touching configuration: it then stands for a local
+    interference at the bearing line (out-of-roundness, burr), not a press fit.
+
+    FINGERPRINT (δ_i = 1e-3 mm; δ measured from the prestressed zero δ₀ =
+    0.84 δ_i, see ``prestressed_zero``): a stiffer loop (δ(+Fg) ×0.54 at 100 N, ×0.56 at
+    400 N), almost closed at 100 N (the clamp keeps the contact stuck: η ×0.17) and wider
+    than the baseline at 400 N (η ×1.42). The first loop after the initial loading does
+    not quite close (1.1 % of δ_max at 400 N, 6 increments): the stick zones ratchet.
+    Refused with clearance (an interference is a negative clearance):
+
+    =======  =====  =======  =========  ==========  ============
+    Δr mm    Fg N   η base   η effect   δ+ base µm  δ+ effect µm
+    =======  =====  =======  =========  ==========  ============
+    0        100    0.01376  0.00238    0.96        0.52
+    0        400    0.01376  0.01957    3.84        2.16
+    =======  =====  =======  =========  ==========  ============
+
+    η vs amplitude: the clamp does not scale with Fg, so the model is no longer
+    homogeneous: η rises steeply with Fg (0.0024 → 0.0196 from 100 to 400 N), the
+    amplitude dependence the zero-clearance baseline lacks. η depends on Fg/δ_i only
+    (both scale together); at δ_i = 1e-4 mm, 100 N already lies past the peak (η = 0.027, 6 increments).
+    """
+
+    name: str = "interference"
+    params: tuple[ParamSpec, ...] = (
+        ParamSpec("interference_mm", 0.0, 0.01, 1e-3, "mm", "initial radial pin–hole overlap"),
+    )
+
+    def apply(self, configs: Mapping[int, Condensed], values: Values) -> dict[int, Condensed]:
+        """Shift every point's initial normal gap by ``−δ_i``."""
+        d = values["interference_mm"]
+        if d == 0.0:
+            return dict(configs)
+        if configs.get(1) is not configs.get(-1):
+            raise ParameterError(
+                f"effects.interference.interference_mm = {d:g} mm needs a hinge without clearance "
+                "(an interference is a negative clearance): clearance_mm must be 0"
+            )
+
+        def change(cond: Condensed) -> Condensed:
+            w0 = np.array(cond.w0, dtype=np.float64, copy=True)
+            w0[:, 0] -= d
+            geo = dataclasses.replace(cond.geo, g0=np.asarray(cond.geo.g0) - d)
+            return dataclasses.replace(cond, geo=geo, w0=w0)
+
+        return _map_configs(configs, change)
+
+
+REGISTRY: Mapping[str, Effect] = types.MappingProxyType(
+    {
+        e.name: e
+        for e in (FrameCompliance(), RoughnessSoftening(), TangentialCompliance(), Interference())
+    }
+)
+"""Effect name → effect, in the order they are applied."""
+
+
+def effect_ranges() -> dict[str, dict[str, tuple[float, float]]]:
+    """Return effect → parameter → (lo, hi): the shape ``validation.model_file`` checks against."""
+    return {n: {p.name: (p.lo, p.hi) for p in e.params} for n, e in REGISTRY.items()}
+
+
+def validate_effects(
+    effects: Mapping[str, Mapping[str, float]],
+) -> Mapping[str, Mapping[str, float]]:
+    """Check effect names, parameter names and ranges; fill absent parameters with defaults.
+
+    Args:
+        effects: Effect name → parameter → value.
+
+    Returns:
+        A read-only copy, effects in registry order, every parameter present.
+
+    Raises:
+        ParameterError: Unknown effect or parameter (the known ones listed), or a value
+            outside its range (naming effect, parameter, value and range).
+    """
+    unknown = [n for n in effects if n not in REGISTRY]
+    if unknown:
+        raise ParameterError(f"unknown effect(s) {unknown}; known effects: {', '.join(REGISTRY)}")
+    out: dict[str, Mapping[str, float]] = {}
+    for name, effect in REGISTRY.items():
+        if name not in effects:
+            continue
+        given = effects[name]
+        specs = {p.name: p for p in effect.params}
+        bad = [k for k in given if k not in specs]
+        if bad:
+            raise ParameterError(
+                f"effect {name!r}: unknown parameter(s) {bad}; allowed: {', '.join(specs)}"
+            )
+        vals: dict[str, float] = {}
+        for p in effect.params:
+            v = float(given.get(p.name, p.default))
+            if not (math.isfinite(v) and p.lo <= v <= p.hi):
+                raise ParameterError(
+                    f"effects.{name}.{p.name} must be in [{p.lo:g}, {p.hi:g}] {p.unit}, got {v:g}"
+                )
+            vals[p.name] = v
+        out[name] = types.MappingProxyType(vals)
+    return types.MappingProxyType(out)
+
+
+def apply_effects(
+    configs: Mapping[int, Condensed], effects: Mapping[str, Mapping[str, float]]
+) -> dict[int, Condensed]:
+    """Apply every enabled effect's ``apply`` hook, in registry order (inputs unchanged)."""
+    values = validate_effects(effects)
+    out = dict(configs)
+    for name, vals in values.items():
+        out = REGISTRY[name].apply(out, vals)
+    return out
+
+
+def post_process(
+    force_n: FloatArray, disp_mm: FloatArray, effects: Mapping[str, Mapping[str, float]]
+) -> FloatArray:
+    """Apply every enabled effect's ``post`` hook, in registry order; shape (n,) [mm]."""
+    values = validate_effects(effects)
+    d = np.array(disp_mm, dtype=np.float64, copy=True)
+    for name, vals in values.items():
+        d = REGISTRY[name].post(np.asarray(force_n, dtype=np.float64), d, vals)
+    return d
+
+
+@dataclass(frozen=True)
+class EffectCycleResult:
+    """A cycle computed with effects.
+
+    Attributes:
+        result: The post-processed cycle: increments' δ include the ``post`` effects and
+            their elastic energy the series spring's, so its ``loop_arrays`` and
+            ``metrics`` (η, U_max, energy balance) describe the loop the grips see; its
+            ``configs`` are the effect-modified configurations.
+        effects: The validated effects.
+        base_configs: The configurations without effects: pass these (not
+            ``result.configs``) to the next ``run_cycle_with_effects`` call.
+    """
+
+    result: CycleResult
+    effects: Mapping[str, Mapping[str, float]]
+    base_configs: dict[int, Condensed]
+
+    def loop_arrays(
+        self, *, with_free_play: bool = False
+    ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int64]]:
+        """Return (force (n+1,) [N], displacement (n+1,) [mm], stage (n+1,)), see ``CycleResult``."""
+        return self.result.loop_arrays(with_free_play=with_free_play)
+
+    def metrics(self) -> dict[str, float]:
+        """Return η, W_cycle, U_max, … of the post-processed loop (``CycleResult.metrics``)."""
+        return self.result.metrics()
+
+
+def prestressed_zero(cond: Condensed, settings: CycleSettings) -> float:
+    """Return the grip displacement of the unloaded, prestressed hinge δ₀ [mm].
+
+    With an initial overlap (``w0_n < 0`` somewhere) the hinge is prestressed before any
+    load and the clevis settles at δ₀ ≠ 0 under F = 0. A test machine zeroes its
+    displacement there, so the loop is referred to it. Computed as one frictional
+    increment from the unloaded open state to F = 0.
+    """
+    m = len(cond.geo.slave)
+    contact = ContactSettings(mu=settings.mu, tol=settings.tol, max_iter=settings.max_iter)
+    start = ContactState.initial(m, cond.G.shape[1], w=cond.w0)
+    res = solve_increment(cond.W, cond.w0, start, contact, G=cond.G, e=np.zeros(cond.G.shape[1]))
+    return float(res.state.alpha[6])
+
+
+def _post_increments(
+    result: CycleResult, effects: Mapping[str, Mapping[str, float]], zero_mm: float = 0.0
+) -> CycleResult:
+    """Return ``result`` with post-processed δ; the series energy ``Σ ½(F_i + F_{i−1}) Δh`` is added.
+
+    ``zero_mm`` is subtracted from every increment first (the prestressed zero δ₀).
+    """
+    F = np.array([0.0] + [i.force_n for i in result.increments])
+    d = np.array([0.0] + [i.disp_mm - zero_mm for i in result.increments])
+    d_new = post_process(F, d, effects)
+    if d_new[0] != 0.0:
+        raise ParameterError(f"a post effect must map F = 0 to δ = 0, got {d_new[0]:g} mm")
+    h = d_new - d
+    series = np.concatenate([[0.0], np.cumsum(0.5 * (F[1:] + F[:-1]) * np.diff(h))])
+    incs: list[Increment] = [
+        dataclasses.replace(
+            inc,
+            disp_mm=float(d_new[k + 1]),
+            elastic_energy=inc.elastic_energy + float(series[k + 1]),
+        )
+        for k, inc in enumerate(result.increments)
+    ]
+    return dataclasses.replace(result, increments=tuple(incs))
+
+
+def run_cycle_with_effects(
+    system: HingeSystem,
+    clearance_mm: float,
+    settings: CycleSettings,
+    effects: Mapping[str, Mapping[str, float]],
+    configs: Mapping[int, Condensed] | None = None,
+) -> EffectCycleResult:
+    """Run the load cycle with effects switched on.
+
+    Args:
+        system: The factorised hinge.
+        clearance_mm: Radial clearance Δr [mm].
+        settings: Load protocol and solver options.
+        effects: Effect name → parameter → value (absent parameters take defaults).
+        configs: Configurations *without* effects to reuse (``configurations``); condensed
+            here if None.
+
+    Returns:
+        The post-processed cycle and the base configurations for reuse.
+
+    Raises:
+        ParameterError: An unknown effect or parameter, or a value out of range.
+        ConvergenceError: As ``fe.cycle.run_cycle`` (its ``partial`` is not post-processed).
+    """
+    values = validate_effects(effects)
+    base = dict(configs) if configs is not None else configurations(system, clearance_mm)
+    t0 = time.perf_counter()
+    modified = apply_effects(base, values)
+    overlap = any(np.any(np.asarray(c.w0)[:, 0] < 0.0) for c in modified.values())
+    zero = prestressed_zero(modified[1], settings) if overlap else 0.0
+    t_apply = time.perf_counter() - t0
+    raw = run_cycle(system, clearance_mm, settings, configs=modified)
+    result = _post_increments(raw, values, zero) if values else raw
+    object.__setattr__(result, "timings_s", {**raw.timings_s, "effects": t_apply})
+    return EffectCycleResult(result, values, base)
