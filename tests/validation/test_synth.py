@@ -1,0 +1,139 @@
+"""validation.synth without FE: design parsing, the finer mesh rule, the machine path, sampling."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cad.errors import ParameterError
+from fe.cycle import CycleResult, CycleSettings, Increment
+from mesh.settings import MeshSettings
+from validation.loops import process_loop
+from validation.measurements import Loop, check_amplitude
+from validation.synth import (
+    DEFAULT_DESIGN,
+    SynthSettings,
+    design_cases,
+    finer_mesh,
+    machine_path,
+    measure,
+    parse_design,
+)
+
+
+def _ellipse_path(amp=300.0, d_amp=2e-3, n=80):
+    """0 → +Fg, then one loop +Fg → −Fg → +Fg with a phase lag (a known area)."""
+    up = np.linspace(0.0, 1.0, n // 4)
+    theta = np.linspace(0.0, 2 * math.pi, n)[1:]
+    F = np.concatenate([amp * up, amp * np.cos(theta)])
+    d = np.concatenate([d_amp * up, d_amp * np.cos(theta - 0.1)])
+    return F, d
+
+
+def test_default_design_is_three_by_three():
+    cases = design_cases(DEFAULT_DESIGN)
+    assert len(cases) == 9
+    assert len({c.clearance_mm for c in cases}) == 3
+    assert len({c.amplitude_n for c in cases}) == 3
+    assert len({c.case_id for c in cases}) == 9
+
+
+def test_parse_design():
+    assert parse_design("0:100,400; 0.1:250") == ((0.0, (100.0, 400.0)), (0.1, (250.0,)))
+    with pytest.raises(ParameterError, match=r"'0.1-250' is not clearance_mm:amplitude_N"):
+        parse_design("0:100;0.1-250")
+    with pytest.raises(ParameterError, match="amplitude_n must be in"):
+        design_cases(parse_design("0:0"))
+    with pytest.raises(ParameterError, match="repeated"):
+        design_cases(parse_design("0:100,100"))
+
+
+@pytest.mark.parametrize(
+    "mesh",
+    [MeshSettings(size_mm=4.0, contact_size_mm=2.0), MeshSettings(), MeshSettings(arc_grading=1.0)],
+    ids=["coarse", "default", "uniform-arcs"],
+)
+def test_synth_mesh_is_finer_and_graded_differently(mesh):
+    fine = finer_mesh(mesh)
+    assert fine.contact_size_mm == pytest.approx(0.75 * mesh.contact_size_mm)
+    assert fine.slave_mm < mesh.slave_mm
+    assert fine.size_mm < mesh.size_mm
+    assert fine.arc_grading != mesh.arc_grading
+
+
+def _increment(stage, F, d, side):
+    return Increment(stage, F, d, side, 1, 0, 0, 0, 0.0, 0.0, 0.0)
+
+
+def test_machine_path_crosses_the_free_play_at_zero_force():
+    incs = (
+        _increment(0, 100.0, 1e-3, 1),
+        _increment(1, 0.0, 2e-4, 1),
+        _increment(1, -100.0, -1e-3, -1),
+        _increment(2, 0.0, -2e-4, -1),
+        _increment(2, 100.0, 1e-3, 1),
+    )
+    r = CycleResult(CycleSettings(amplitude_n=100.0), 0.05, incs, 0.2, (), {})
+    F, d = machine_path(r)
+    np.testing.assert_array_equal(F, [0, 100, 0, 0, -100, 0, 0, 100])
+    np.testing.assert_allclose(
+        d, [0.1, 0.101, 0.1002, -0.1, -0.101, -0.1002, 0.1, 0.101], rtol=0, atol=1e-15
+    )
+
+
+def test_measure_is_deterministic_by_seed_and_leaves_inputs_alone():
+    F, d = _ellipse_path()
+    F0, d0 = F.copy(), d.copy()
+    a = measure(F, d, SynthSettings(seed=3), 0)
+    b = measure(F, d, SynthSettings(seed=3), 0)
+    c = measure(F, d, SynthSettings(seed=4), 0)
+    e = measure(F, d, SynthSettings(seed=3), 1)
+    np.testing.assert_array_equal(a.force_n, b.force_n)
+    np.testing.assert_array_equal(a.displacement_mm, b.displacement_mm)
+    assert not np.array_equal(a.force_n, c.force_n)
+    assert not np.array_equal(a.force_n, e.force_n)  # each case its own stream
+    np.testing.assert_array_equal(F, F0)
+    np.testing.assert_array_equal(d, d0)
+
+
+def test_measured_loop_is_realistic_and_keeps_the_area():
+    F, d = _ellipse_path()
+    s = SynthSettings(seed=1, noise_force_n=0.1, noise_disp_mm=1e-6)
+    m = measure(F, d, s, 0)
+    dt = np.diff(m.time_s)
+    np.testing.assert_allclose(dt, 1 / s.sample_hz, rtol=1e-9)  # fixed clock
+    n_dwell = int(np.sum(m.time_s < s.dwell_s))
+    assert n_dwell == pytest.approx(s.dwell_s * s.sample_hz, abs=1)
+    assert np.all(np.abs(m.force_n[:n_dwell] - m.force_offset_n) < 1.0)
+    loop = Loop(m.force_n, m.displacement_mm, m.time_s, "synth")
+    check_amplitude(loop, 300.0, "synth")
+    measured = process_loop(m.force_n, m.displacement_mm, "synth").metrics
+    truth = process_loop(F, d, "path").metrics
+    assert measured.W_cycle_Nmm == pytest.approx(truth.W_cycle_Nmm, rel=0.03)
+    assert measured.eta == pytest.approx(truth.eta, rel=0.03)
+
+
+def test_free_play_is_sampled_at_the_crosshead_speed():
+    F = np.array([0.0, 100.0, 0.0, 0.0, -100.0])
+    d = np.array([0.0, 1e-3, 0.0, -0.2, -0.201])
+    s = SynthSettings(noise_force_n=0.0, noise_disp_mm=0.0, force_offset_n=0.0, disp_offset_mm=0.0)
+    m = measure(F, d, s, 0)
+    in_play = (m.displacement_mm < -1e-3) & (m.displacement_mm > -0.199)
+    assert np.all(m.force_n[in_play] == 0.0)
+    assert in_play.sum() == pytest.approx(0.198 / s.disp_rate_mm_per_s * s.sample_hz, abs=2)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "match"),
+    [
+        ("seed", -1, "seed must be an integer"),
+        ("sample_hz", 0.0, "sample_hz"),
+        ("noise_force_n", -1.0, "noise_force_n"),
+    ],
+    ids=["seed", "sample_hz", "noise"],
+)
+def test_settings_refuse_bad_values(field, value, match):
+    with pytest.raises(ParameterError, match=match):
+        SynthSettings(**{field: value})

@@ -1,0 +1,364 @@
+"""Synthetic measurement sets: a model with hidden effects, measured as a test machine would.
+
+``synthesize`` runs a model (``validation.model_file.ModelSpec``) with extra, hidden
+effects (``fe.effects``) at a design of (clearance, amplitude) cases and writes a
+measurement set in the format of ``validation.measurements`` (``cases.csv`` + one loop
+CSV per case) and a ``manifest.json`` holding the truth (effects and values, meshes, μ,
+seed, the FE metrics of every case), which diagnosis tests read back.
+
+No inverse crime: the data come from a finer, differently graded mesh and finer load
+increments than the model that will be judged on them (``finer_mesh``,
+``SYNTH_INCREMENT_FACTOR``).
+
+Measurement model (``measure``): a force-controlled ramp between the turning points at
+``force_rate_n_per_s`` with the crosshead limited to ``disp_rate_mm_per_s`` (so the free
+play of a clearance is crossed at constant speed under almost no force), sampled at a
+fixed clock ``sample_hz`` (the turning points fall between samples), after a dwell at
+zero; then a load-cell and a displacement offset and Gaussian noise on both channels.
+Every random number comes from ``numpy.random.default_rng([seed, case index])``, so a
+set is reproducible from its seed and a case does not depend on the others.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from cad.errors import ParameterError, check_range
+from fe.cycle import CycleResult
+from mesh.settings import MeshSettings
+from validation.model_file import ModelSpec
+
+FloatArray = npt.NDArray[np.float64]
+
+CONTACT_SIZE_FACTOR = 0.75
+"""The synthetic data's contact (and slave) element size is the model's times this."""
+
+GLOBAL_SIZE_FACTOR = 0.9
+"""The synthetic data's global (and per-part) element size is the model's times this."""
+
+ARC_GRADING_FACTOR = 1.5
+"""The synthetic data's arc grading is the model's times this (capped at 100)."""
+
+SYNTH_INCREMENT_FACTOR = 2
+"""The synthetic data use this many times the model's increments per stage."""
+
+MESH_RULE = (
+    f"contact_size_mm × {CONTACT_SIZE_FACTOR}, size_mm and part sizes × {GLOBAL_SIZE_FACTOR}, "
+    f"arc_grading × {ARC_GRADING_FACTOR} (≤ 100), increments_per_stage × {SYNTH_INCREMENT_FACTOR}"
+)
+
+DEFAULT_DESIGN: tuple[tuple[float, tuple[float, ...]], ...] = (
+    (0.0, (100.0, 250.0, 400.0)),
+    (0.1, (100.0, 250.0, 400.0)),
+    (0.2, (100.0, 250.0, 400.0)),
+)
+"""Default 9-case design: clearance [mm] → amplitudes [N] (3 × 3)."""
+
+
+@dataclass(frozen=True)
+class SynthSettings:
+    """How the synthetic test machine samples and disturbs a loop.
+
+    Attributes:
+        seed: Seed of every random number.
+        noise_force_n: Standard deviation of the force noise [N].
+        noise_disp_mm: Standard deviation of the displacement noise [mm].
+        force_offset_n: Load-cell zero offsets are drawn uniformly in ± this [N].
+        disp_offset_mm: Displacement zero offsets are drawn uniformly in ± this [mm].
+        sample_hz: Sampling frequency [Hz].
+        force_rate_n_per_s: Force rate of the ramps [N/s].
+        disp_rate_mm_per_s: Crosshead speed limit [mm/s] (sets the time in the free play).
+        dwell_s: Time recorded at zero before the loading starts [s].
+    """
+
+    seed: int = 0
+    noise_force_n: float = 0.2
+    noise_disp_mm: float = 5e-5
+    force_offset_n: float = 1.0
+    disp_offset_mm: float = 5e-3
+    sample_hz: float = 20.0
+    force_rate_n_per_s: float = 20.0
+    disp_rate_mm_per_s: float = 0.01
+    dwell_s: float = 2.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.seed, int) or self.seed < 0:
+            raise ParameterError(f"seed must be an integer ≥ 0, got {self.seed!r}")
+        check_range("noise_force_n", self.noise_force_n, 0.0, 100.0)
+        check_range("noise_disp_mm", self.noise_disp_mm, 0.0, 0.1)
+        check_range("force_offset_n", self.force_offset_n, 0.0, 1000.0)
+        check_range("disp_offset_mm", self.disp_offset_mm, 0.0, 10.0)
+        check_range("sample_hz", self.sample_hz, 0.0, 1e5, lo_open=True)
+        check_range("force_rate_n_per_s", self.force_rate_n_per_s, 0.0, 1e6, lo_open=True)
+        check_range("disp_rate_mm_per_s", self.disp_rate_mm_per_s, 0.0, 100.0, lo_open=True)
+        check_range("dwell_s", self.dwell_s, 0.0, 3600.0)
+
+
+@dataclass(frozen=True)
+class SynthCase:
+    """One synthetic test.
+
+    Attributes:
+        case_id: Its name (``dr<Δr>mm_F<Fg>N``).
+        clearance_mm: Radial clearance Δr [mm].
+        amplitude_n: Force amplitude Fg [N].
+    """
+
+    case_id: str
+    clearance_mm: float
+    amplitude_n: float
+
+
+def finer_mesh(mesh: MeshSettings) -> MeshSettings:
+    """Return the mesh the synthetic data are computed on (``MESH_RULE``)."""
+    contact = mesh.contact_size_mm * CONTACT_SIZE_FACTOR
+    return dataclasses.replace(
+        mesh,
+        size_mm=max(mesh.size_mm * GLOBAL_SIZE_FACTOR, contact),
+        contact_size_mm=contact,
+        part_sizes_mm=tuple((n, s * GLOBAL_SIZE_FACTOR) for n, s in mesh.part_sizes_mm),
+        arc_grading=min(mesh.arc_grading * ARC_GRADING_FACTOR, 100.0),
+    )
+
+
+def design_cases(design: Sequence[tuple[float, Sequence[float]]]) -> tuple[SynthCase, ...]:
+    """Return the cases of a design (clearance → amplitudes), in order.
+
+    Raises:
+        ParameterError: A negative clearance, a non-positive amplitude, or a repeated case.
+    """
+    out: list[SynthCase] = []
+    seen: set[tuple[float, float]] = set()
+    for clearance, amps in design:
+        check_range("clearance_mm", clearance, 0.0, 10.0)
+        for amp in amps:
+            check_range("amplitude_n", amp, 0.0, 1e6, lo_open=True)
+            if (clearance, amp) in seen:
+                raise ParameterError(f"case Δr = {clearance:g} mm, Fg = {amp:g} N is repeated")
+            seen.add((clearance, amp))
+            out.append(SynthCase(f"dr{clearance:g}mm_F{amp:g}N", clearance, amp))
+    if not out:
+        raise ParameterError("the design has no cases")
+    return tuple(out)
+
+
+def parse_design(text: str) -> tuple[tuple[float, tuple[float, ...]], ...]:
+    """Parse ``"clearance:amp,amp,...;clearance:amp,..."`` (mm, N).
+
+    Raises:
+        ParameterError: Naming the part that is not ``number:number[,number...]``.
+    """
+    design = []
+    for part in filter(None, (p.strip() for p in text.split(";"))):
+        head, sep, tail = part.partition(":")
+        try:
+            if not sep:
+                raise ValueError
+            amps = tuple(float(a) for a in tail.split(","))
+            design.append((float(head), amps))
+        except ValueError:
+            raise ParameterError(
+                f"--cases: {part!r} is not clearance_mm:amplitude_N[,amplitude_N...]"
+            ) from None
+    if not design:
+        raise ParameterError(f"--cases: no cases in {text!r}")
+    return tuple(design)
+
+
+def machine_path(result: CycleResult) -> tuple[FloatArray, FloatArray]:
+    """Return the loop the grips follow, free play included: (force (n,) [N], δ (n,) [mm]).
+
+    Where the pin changes sides (at F = 0) the free play is crossed at zero force: a
+    point at F = 0 in the new touching configuration is inserted (δ there is 0 relative
+    to it; no effect in ``fe.effects`` moves an unloaded configuration with clearance).
+    """
+    F, d, _ = result.loop_arrays(with_free_play=True)
+    side = np.array([1] + [i.side for i in result.increments])
+    F_out, d_out = [F[0]], [d[0]]
+    for k in range(1, len(F)):
+        if side[k] != side[k - 1]:
+            F_out.append(0.0)
+            d_out.append(side[k] * result.free_play_mm / 2)
+        F_out.append(F[k])
+        d_out.append(d[k])
+    return np.array(F_out), np.array(d_out)
+
+
+@dataclass(frozen=True)
+class Measured:
+    """A synthetic record.
+
+    Attributes:
+        time_s: Sample times, shape (n,) [s].
+        force_n: Force, shape (n,) [N] (offset and noise included).
+        displacement_mm: Displacement, shape (n,) [mm] (offset and noise included).
+        force_offset_n: The load-cell offset drawn [N].
+        disp_offset_mm: The displacement offset drawn [mm].
+    """
+
+    time_s: FloatArray
+    force_n: FloatArray
+    displacement_mm: FloatArray
+    force_offset_n: float
+    disp_offset_mm: float
+
+
+def measure(
+    force_n: FloatArray, disp_mm: FloatArray, settings: SynthSettings, case_index: int
+) -> Measured:
+    """Sample a computed path as the test machine would (module docstring).
+
+    Args:
+        force_n: Force along the path, shape (n,) [N], starting at 0.
+        disp_mm: Displacement along the path, shape (n,) [mm], starting at 0.
+        settings: Sampling and noise.
+        case_index: Index of the case (the second word of the random seed).
+
+    Returns:
+        The record; the inputs are not modified.
+    """
+    F = np.asarray(force_n, dtype=np.float64)
+    d = np.asarray(disp_mm, dtype=np.float64)
+    dt = np.maximum(
+        np.abs(np.diff(F)) / settings.force_rate_n_per_s,
+        np.abs(np.diff(d)) / settings.disp_rate_mm_per_s,
+    )
+    t_path = settings.dwell_s + np.concatenate([[0.0], np.cumsum(dt)])  # (n,) [s]
+    t = np.arange(0.0, t_path[-1], 1.0 / settings.sample_hz)  # fixed clock
+    F_s = np.interp(t, t_path, F, left=0.0)
+    d_s = np.interp(t, t_path, d, left=0.0)
+    rng = np.random.default_rng([settings.seed, case_index])
+    f_off = float(rng.uniform(-1.0, 1.0)) * settings.force_offset_n
+    d_off = float(rng.uniform(-1.0, 1.0)) * settings.disp_offset_mm
+    F_s = F_s + f_off + rng.normal(0.0, settings.noise_force_n, t.size)
+    d_s = d_s + d_off + rng.normal(0.0, settings.noise_disp_mm, t.size)
+    return Measured(t, F_s, d_s, f_off, d_off)
+
+
+def write_loop_csv(path: Path, m: Measured) -> Path:
+    """Write a record as ``time_s,force_N,displacement_mm`` (9 significant digits)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savetxt(
+        path,
+        np.column_stack([m.time_s, m.force_n, m.displacement_mm]),
+        delimiter=",",
+        header="time_s,force_N,displacement_mm",
+        comments="",
+        fmt="%.9g",
+    )
+    return path
+
+
+@dataclass(frozen=True)
+class SynthReport:
+    """What ``synthesize`` wrote.
+
+    Attributes:
+        out: The measurement folder.
+        manifest: The manifest (also in ``out/manifest.json``).
+    """
+
+    out: Path
+    manifest: dict[str, Any]
+
+
+def synthesize(
+    spec: ModelSpec,
+    hidden: Mapping[str, Mapping[str, float]],
+    cases: Sequence[SynthCase],
+    settings: SynthSettings,
+    out: Path,
+) -> SynthReport:
+    """Compute and write a synthetic measurement set.
+
+    Args:
+        spec: The model (geometry, materials, μ, mesh, cycle, its own effects).
+        hidden: Hidden effects, added to (and overriding) the model's own.
+        cases: The tests.
+        settings: Sampling and noise.
+        out: Folder to write (``cases.csv``, ``loops/*.csv``, ``manifest.json``).
+
+    Returns:
+        The folder and the manifest.
+
+    Raises:
+        ParameterError: A bad effect, a non-general hinge, or an effect refused at a case.
+    """
+    from cad.general import GeneralHingeParams, make_general_hinge
+    from fe.cycle import configurations
+    from fe.effects import run_cycle_with_effects, validate_effects
+    from fe.hinge_system import build_system
+    from mesh.build import mesh_hinge
+    from validation.model_file import with_clearance
+
+    if spec.kind != "general":
+        raise ParameterError(f"synth supports hinge kind 'general' only, got {spec.kind!r}")
+    truth = validate_effects({**spec.effects, **hidden})
+    mesh_settings = finer_mesh(spec.mesh)
+    n_inc = spec.cycle.increments_per_stage * SYNTH_INCREMENT_FACTOR
+    t0 = time.perf_counter()
+    rows = ["case_id,hinge,clearance_mm,preload_N,amplitude_N,loop_file,temperature_C"]
+    records: list[dict[str, Any]] = []
+    index = {c.case_id: i for i, c in enumerate(cases)}
+    for clearance in sorted({c.clearance_mm for c in cases}):
+        hinge = with_clearance(spec, clearance)
+        if not isinstance(hinge, GeneralHingeParams):  # kind checked above; for the type checker
+            raise ParameterError(f"synth needs a general hinge, got {type(hinge).__name__}")
+        mesh, _ = mesh_hinge(make_general_hinge(hinge), mesh_settings)
+        system = build_system(mesh)
+        base = configurations(system, clearance)
+        for case in (c for c in cases if c.clearance_mm == clearance):
+            cycle = dataclasses.replace(
+                spec.cycle, amplitude_n=case.amplitude_n, increments_per_stage=n_inc
+            )
+            result = run_cycle_with_effects(system, clearance, cycle, truth, configs=base)
+            F, d = machine_path(result.result)
+            m = measure(F, d, settings, index[case.case_id])
+            loop_file = f"loops/{case.case_id}.csv"
+            write_loop_csv(out / loop_file, m)
+            metrics = result.metrics()
+            records.append(
+                {
+                    **dataclasses.asdict(case),
+                    "loop_file": loop_file,
+                    "n_samples": int(m.time_s.size),
+                    "duration_s": float(m.time_s[-1]),
+                    "force_offset_N": m.force_offset_n,
+                    "disp_offset_mm": m.disp_offset_mm,
+                    "n_contact_points": len(base[1].geo.slave),
+                    "fe_metrics": {k: float(v) for k, v in metrics.items()},
+                }
+            )
+    for c in cases:  # cases.csv in the order given
+        rows.append(
+            f"{c.case_id},general,{c.clearance_mm:g},0,{c.amplitude_n:g},loops/{c.case_id}.csv,21"
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "cases.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+    manifest = {
+        "generator": "hingelab synth (validation.synth)",
+        "seed": settings.seed,
+        "truth_effects": {k: dict(v) for k, v in truth.items()},
+        "hidden_effects": {k: dict(v) for k, v in validate_effects(hidden).items()},
+        "model_effects": {k: dict(v) for k, v in spec.effects.items()},
+        "mu": spec.cycle.mu,
+        "model_mesh": dataclasses.asdict(spec.mesh),
+        "synth_mesh": dataclasses.asdict(mesh_settings),
+        "mesh_rule": MESH_RULE,
+        "model_increments_per_stage": spec.cycle.increments_per_stage,
+        "synth_increments_per_stage": n_inc,
+        "measurement": dataclasses.asdict(settings),
+        "cases": sorted(records, key=lambda r: index[r["case_id"]]),
+        "wall_s": time.perf_counter() - t0,
+    }
+    (out / "manifest.json").write_text(json.dumps(manifest, indent=1, ensure_ascii=False) + "\n")
+    return SynthReport(out, manifest)
