@@ -51,11 +51,12 @@ import itertools
 import math
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import build123d as bd
 
-from cad.errors import GeometryError, ParameterError, check_range
+from cad.errors import ParameterError, check_range
+from cad.kernel import checked_solid, extrude_faces, single_face
 from cad.materials import ALUMINIUM, GCR15, STEEL_45, Material
 from cad.model import (
     Box,
@@ -362,39 +363,19 @@ def _groove_half_span(dw: float, f: float, depth: float, alpha_deg: float) -> fl
     return dw * math.sqrt(f * f - (f - depth) ** 2) + offset
 
 
-def _checked(shape: bd.Shape[Any], name: str) -> bd.Solid:
-    solids = shape.solids()
-    if len(solids) != 1 or not solids[0].is_valid:
-        raise GeometryError(
-            f"{name}: the kernel made {len(solids)} solid(s), valid={shape.is_valid}"
-        )
-    return solids[0]
-
-
-def _single_face(sketch: bd.Sketch, what: str) -> bd.Face:
-    faces = sketch.faces()
-    if len(faces) != 1:
-        raise GeometryError(f"{what} should be one face, the kernel made {len(faces)}")
-    return faces[0]
-
-
-def _extrude(faces: tuple[bd.Face, ...], z0: float, z1: float) -> bd.Part:
-    return bd.Pos(0, 0, z0) * bd.extrude(bd.Sketch() + list(faces), amount=z1 - z0)
-
-
 def _annulus(r_in: float, r_out: float, what: str) -> bd.Face:
-    return _single_face(bd.Circle(r_out) - bd.Circle(r_in), what)
+    return single_face(bd.Circle(r_out) - bd.Circle(r_in), what)
 
 
 def _swept(
     faces: tuple[bd.Face, ...], slabs: tuple[Slab, ...], name: str
 ) -> tuple[bd.Solid, Sweep]:
     """Return the solid made by extruding ``faces`` slab by slab, and its Sweep."""
-    layers = [_extrude(tuple(faces[i] for i in s.faces), s.z0_mm, s.z1_mm) for s in slabs]
+    layers = [extrude_faces(tuple(faces[i] for i in s.faces), s.z0_mm, s.z1_mm) for s in slabs]
     body = layers[0]
     for layer in layers[1:]:
         body = body + layer
-    return _checked(body, name), Sweep(faces, slabs)
+    return checked_solid(body, name), Sweep(faces, slabs)
 
 
 def _lug(
@@ -405,7 +386,7 @@ def _lug(
     body = bd.Rectangle(length, width, align=(align_x, bd.Align.CENTER)) + bd.Circle(width / 2)
     return (
         _annulus(hole_r, ring_r, f"{what} ring"),
-        _single_face(body - bd.Circle(ring_r), f"{what} outline"),
+        single_face(body - bd.Circle(ring_r), f"{what} outline"),
     )
 
 
@@ -446,7 +427,7 @@ def _lug_parts(p: BearingHingeParams) -> tuple[Part, ...]:
     arm_ring, arm_outer = _lug(
         p.clevis_width_mm, 1.0, p.clevis_length_mm, arm_ring_r, r_d, "clevis"
     )
-    base = _single_face(
+    base = single_face(
         bd.Pos(p.clevis_length_mm, 0)
         * bd.Rectangle(p.clevis_base_mm, p.clevis_width_mm, align=(bd.Align.MIN, bd.Align.CENTER)),
         "clevis base",
@@ -463,7 +444,7 @@ def _lug_parts(p: BearingHingeParams) -> tuple[Part, ...]:
     levels = sorted(
         {v for key in ("pin", "clevis_1", "clevis_2", "tang", "plate") for v in z[key]} | {0.0}
     )
-    pin_face = _single_face(bd.Circle(r_d), "pin section")
+    pin_face = single_face(bd.Circle(r_d), "pin section")
     pin, pin_sweep = _swept(
         (pin_face,), tuple(Slab(a, b, (0,)) for a, b in itertools.pairwise(levels)), "pin"
     )
@@ -505,13 +486,15 @@ def _bearing_parts(p: BearingHingeParams, b: int) -> tuple[Part, ...]:
         - groove(g.outer_groove, p.outer_curvature_ratio)
     )
     parts = [
-        Part(f"inner_ring_{b}", _checked(inner, f"inner_ring_{b}"), p.bearing_material),
-        Part(f"outer_ring_{b}", _checked(outer, f"outer_ring_{b}"), p.bearing_material),
+        Part(f"inner_ring_{b}", checked_solid(inner, f"inner_ring_{b}"), p.bearing_material),
+        Part(f"outer_ring_{b}", checked_solid(outer, f"outer_ring_{b}"), p.bearing_material),
     ]
     for k in range(p.ball_count):
         x, y, z = ball_center(p, b, k)
         ball = bd.Pos(x, y, z) * bd.Sphere(0.5 * dw)
-        parts.append(Part(f"ball_{b}_{k}", _checked(ball, f"ball_{b}_{k}"), p.bearing_material))
+        parts.append(
+            Part(f"ball_{b}_{k}", checked_solid(ball, f"ball_{b}_{k}"), p.bearing_material)
+        )
     return tuple(parts)
 
 

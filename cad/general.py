@@ -28,7 +28,8 @@ from dataclasses import dataclass, field
 
 import build123d as bd
 
-from cad.errors import GeometryError, check_range
+from cad.errors import check_range
+from cad.kernel import checked_solid, extrude_faces, single_face
 from cad.materials import ALUMINIUM, STEEL_45, Material
 from cad.model import FaceRole, HingeModel, NamedFace, PairKind, Part, Slab, SurfacePair, Sweep
 from cad.surfaces import Cylinder, Plane
@@ -144,7 +145,7 @@ def _quarter_annulus(r_in: float, r_out: float, start_deg: float) -> bd.Face:
         bd.CenterArc((0, 0), r_out, start_deg, 90.0),
         bd.Line(_polar(r_in, start_deg), _polar(r_out, start_deg)),
     ]
-    return _single_face(bd.make_face(edges), "quarter annulus")
+    return single_face(bd.make_face(edges), "quarter annulus")
 
 
 def _ring_faces(r_in: float, r_out: float) -> tuple[bd.Face, ...]:
@@ -167,7 +168,7 @@ def _disk_faces(radius: float) -> tuple[bd.Face, ...]:
     starts = (0.0, 90.0, 180.0, 270.0)
     corners = [_polar(rho, a) for a in starts]
     square = bd.make_face([bd.Line(corners[i], corners[(i + 1) % 4]) for i in range(4)])
-    faces = [_single_face(square, "pin core")]
+    faces = [single_face(square, "pin core")]
     for i, a in enumerate(starts):
         edges = [
             bd.CenterArc((0, 0), radius, a, 90.0),
@@ -175,7 +176,7 @@ def _disk_faces(radius: float) -> tuple[bd.Face, ...]:
             bd.Line(corners[(i + 1) % 4], corners[i]),
             bd.Line(corners[i], _polar(radius, a)),
         ]
-        faces.append(_single_face(bd.make_face(edges), "pin patch"))
+        faces.append(single_face(bd.make_face(edges), "pin patch"))
     return tuple(faces)
 
 
@@ -193,27 +194,7 @@ def _lug_profile(p: GeneralHingeParams, toward: float, length: float) -> tuple[b
     )
     end_starts = (90.0, 180.0) if toward > 0 else (270.0, 0.0)
     end = tuple(_quarter_annulus(p.ring_radius_mm, half_w, a) for a in end_starts)
-    return (*_ring_faces(p.hole_radius_mm, p.ring_radius_mm), *end, _single_face(body, "lug body"))
-
-
-def _single_face(sketch: bd.Sketch, what: str) -> bd.Face:
-    faces = sketch.faces()
-    if len(faces) != 1:
-        raise GeometryError(f"{what} should be one face, the kernel made {len(faces)}")
-    return faces[0]
-
-
-def _extrude(faces: tuple[bd.Face, ...], z0: float, z1: float) -> bd.Part:
-    return bd.Pos(0, 0, z0) * bd.extrude(bd.Sketch() + list(faces), amount=z1 - z0)
-
-
-def _checked(solid: bd.Part, name: str) -> bd.Solid:
-    solids = solid.solids()
-    if len(solids) != 1 or not solids[0].is_valid:
-        raise GeometryError(
-            f"{name}: the kernel made {len(solids)} solid(s), valid={solid.is_valid}"
-        )
-    return solids[0]
+    return (*_ring_faces(p.hole_radius_mm, p.ring_radius_mm), *end, single_face(body, "lug body"))
 
 
 def make_general_hinge(p: GeneralHingeParams) -> HingeModel:
@@ -234,19 +215,19 @@ def make_general_hinge(p: GeneralHingeParams) -> HingeModel:
     base = bd.Pos(p.clevis_length_mm, 0) * bd.Rectangle(
         p.clevis_base_mm, p.lug_width_mm, align=(bd.Align.MIN, bd.Align.CENTER)
     )
-    base_face = _single_face(base, "clevis base")
+    base_face = single_face(base, "clevis base")
     pin_faces = _disk_faces(p.pin_radius_mm)
 
-    tang = _checked(_extrude(tang_faces, *z["tang"]), "tang")
+    tang = checked_solid(extrude_faces(tang_faces, *z["tang"]), "tang")
     arm_faces = (*arm_lug, base_face)
     base_index = len(arm_faces) - 1
     clevis_body = (
-        _extrude(arm_faces, *z["clevis_1"])
-        + _extrude((base_face,), z["clevis_1"][1], z["clevis_2"][0])
-        + _extrude(arm_faces, *z["clevis_2"])
+        extrude_faces(arm_faces, *z["clevis_1"])
+        + extrude_faces((base_face,), z["clevis_1"][1], z["clevis_2"][0])
+        + extrude_faces(arm_faces, *z["clevis_2"])
     )
-    clevis = _checked(clevis_body, "clevis")
-    pin = _checked(_extrude(pin_faces, *z["pin"]), "pin")
+    clevis = checked_solid(clevis_body, "clevis")
+    pin = checked_solid(extrude_faces(pin_faces, *z["pin"]), "pin")
     everything = tuple(range(len(arm_faces)))
 
     pin_levels = sorted({*z["pin"], *z["clevis_1"], *z["clevis_2"], *z["tang"]})

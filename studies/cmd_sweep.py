@@ -8,7 +8,7 @@ from pathlib import Path
 
 from cad.errors import ParameterError
 from fe.cycle import DEFAULT_MU
-from mesh.settings import MeshSettings
+from studies.cmd_mesh import settings_from_args
 from studies.pipeline import dumps
 from studies.sweep import SweepSettings, run_sweep
 
@@ -50,22 +50,17 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "--out", type=Path, required=True, metavar="DIR", help="output folder (rerun to resume)"
     )
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, hinge="general")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab sweep``."""
-    mesh_kw: dict[str, float | int] = {"refinement": args.refinement}
-    if args.size is not None:
-        mesh_kw["size_mm"] = args.size
-    if args.contact_size is not None:
-        mesh_kw["contact_size_mm"] = args.contact_size
     settings = SweepSettings(
         clearances_mm=_floats("clearance", args.clearance),
         amplitudes_n=_floats("amplitude", args.amplitude),
         mu=args.mu,
         increments_per_stage=args.increments,
-        mesh=MeshSettings.for_hinge("general", **mesh_kw),
+        mesh=settings_from_args(args),
         workers=args.workers,
         study=args.study,
     )
