@@ -28,7 +28,15 @@ from threadpoolctl import threadpool_limits
 
 from cad.errors import ConvergenceError, check_range
 from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
-from fe.hinge_system import Condensed, HingeSystem, condense, contact_geometry
+from fe.hinge_system import (
+    Condensed,
+    HingeSystem,
+    condense,
+    contact_geometry,
+    displacement,
+    outside_gaps,
+    split_window,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -55,6 +63,10 @@ class CycleSettings:
         max_cutbacks: Halvings of a failing increment before giving up.
         tol: Contact-solver tolerance on the scaled residual.
         max_iter: Contact Newton iterations per increment before a cut-back.
+        contact_window: With clearance, solve only for the points whose initial gap in
+            the touching configuration is ≤ contact_window·Δr (0.5: about ±60° around
+            the load line); the others are checked to stay open at every load peak, and
+            the cycle stops with a clear error if one closed. 0 solves for every point.
         blas_threads: BLAS threads for the dense contact solves. Their matrices are a
             few hundred to a few thousand wide, where two threads on a shared 2-core
             machine measured 5× slower than one (benchmarks/bench_cycle.py).
@@ -69,6 +81,7 @@ class CycleSettings:
     tol: float = 1e-10
     max_iter: int = 60
     blas_threads: int = 1
+    contact_window: float = 0.5
 
     def __post_init__(self) -> None:
         check_range("amplitude_n", self.amplitude_n, 0.0, 1e6, lo_open=True)
@@ -78,6 +91,7 @@ class CycleSettings:
         check_range("grading", self.grading, 1.0, 4.0)
         check_range("max_cutbacks", self.max_cutbacks, 0, 20)
         check_range("blas_threads", self.blas_threads, 1, 64)
+        check_range("contact_window", self.contact_window, 0.0, 10.0)
 
     def stages(self) -> list[tuple[float, float, int]]:
         """Return the stages as (F_from, F_to, increments) [N]."""
@@ -225,12 +239,15 @@ class CycleResult:
         return out
 
 
-def configurations(system: HingeSystem, clearance_mm: float) -> dict[int, Condensed]:
+def configurations(
+    system: HingeSystem, clearance_mm: float, window: float = 0.0
+) -> dict[int, Condensed]:
     """Condense the tension (+1) and compression (−1) touching configurations.
 
     They depend on the mesh and Δr only: pass them to ``run_cycle(configs=...)`` to reuse
     them for every amplitude and friction coefficient (or modify them, e.g. by an effect
-    that adds interface compliance).
+    that adds interface compliance). ``window`` > 0 keeps only the points whose gap is
+    ≤ window·Δr (see ``CycleSettings.contact_window``).
     """
     ex = np.array([1.0, 0.0, 0.0])
     configs: dict[int, Condensed] = {}
@@ -244,7 +261,12 @@ def configurations(system: HingeSystem, clearance_mm: float) -> dict[int, Conden
             p.name: (side * clearance_mm * ex if "tang" in p.master else -side * clearance_mm * ex)
             for p in system.mesh.pairs
         }
-        configs[side] = condense(system, contact_geometry(system.mesh, shift))
+        geo = contact_geometry(system.mesh, shift)
+        if window > 0.0 and clearance_mm > 0.0:
+            inside, outside = split_window(geo, window * clearance_mm)
+            configs[side] = condense(system, inside, outside)
+        else:
+            configs[side] = condense(system, geo)
     return configs
 
 
@@ -274,7 +296,9 @@ def run_cycle(
     """
     check_range("clearance_mm", clearance_mm, 0.0, 10.0)
     t0 = time.perf_counter()
-    configs = configs or configurations(system, clearance_mm)  # sparse solves: all threads
+    configs = configs or configurations(
+        system, clearance_mm, settings.contact_window
+    )  # all threads
     t_cond = time.perf_counter() - t0
     with threadpool_limits(limits=settings.blas_threads, user_api="blas"):  # dense contact solves
         result = _run(system, clearance_mm, settings, configs, progress)
@@ -334,11 +358,40 @@ def _run(
             incs.append(_record(stage, float(target), side, res, cond))
             states.append(new)
             previous, state, f_prev = (f_prev, state), new, float(target)
+            if target == f_to:
+                _check_window(system, cond, state, len(incs) - 1, float(target), partial)
             if progress is not None:
                 progress(min(len(incs), total), total)
     result = partial()
     object.__setattr__(result, "timings_s", {"contact": time.perf_counter() - t1})
     return result
+
+
+def _check_window(
+    system: HingeSystem,
+    cond: Condensed,
+    state: ContactState,
+    index: int,
+    force: float,
+    partial: Callable[[], CycleResult],
+) -> None:
+    """Raise if a point outside the contact window has closed (the window was too small)."""
+    if cond.outside is None:
+        return
+    u = displacement(system, cond, np.asarray(state.p), np.asarray(state.alpha))
+    gaps = outside_gaps(cond, u)
+    i = int(np.argmin(gaps))
+    if gaps[i] < 0.0:
+        x = np.asarray(system.mesh.nodes)[cond.outside.slave[i]]
+        raise ConvergenceError(
+            f"contact window too small: a point outside it (θ = {np.degrees(np.arctan2(x[1], x[0])):.1f}°, "
+            f"z = {x[2]:.2f} mm) closed by {-gaps[i] * 1e3:.3f} µm at F = {force:g} N; "
+            "raise CycleSettings.contact_window",
+            increment=index,
+            iteration=0,
+            residual=float(-gaps[i]),
+            partial=partial(),
+        )
 
 
 SEED_GAP_MM = 1e-6

@@ -167,6 +167,30 @@ def closest_point(surface: Cylinder, x: FloatArray) -> FloatArray:
     return x - surface.distance_outside(x)[:, None] * surface.outward_normal(x)
 
 
+def split_window(geo: ContactGeometry, window_mm: float) -> tuple[ContactGeometry, ContactGeometry]:
+    """Split contact points into those with an initial gap ≤ ``window_mm`` and the rest.
+
+    Returns:
+        (inside the window, outside it), each a ContactGeometry.
+    """
+    inside = geo.g0 <= window_mm
+
+    def pick(mask: npt.NDArray[np.bool_]) -> ContactGeometry:
+        return ContactGeometry(
+            *(np.asarray(getattr(geo, f))[mask] for f in geo.__dataclass_fields__)
+        )
+
+    return pick(inside), pick(~inside)
+
+
+def outside_gaps(cond: Condensed, u: FloatArray) -> FloatArray:
+    """Normal gaps of the points outside the contact window, shape (m_out,) [mm]."""
+    if cond.outside is None or cond.C_outside is None:
+        return np.zeros(0)
+    w = cond.C_outside @ np.ravel(u)
+    return np.asarray(cond.outside.g0 + w[0::3])
+
+
 def contact_geometry(mesh: HexMesh, shift_mm: dict[str, FloatArray]) -> ContactGeometry:
     """Build the contact points of every contact pair in a configuration.
 
@@ -283,7 +307,7 @@ class HingeSystem:
     master_nodes: IntArray
     timings_s: dict[str, float] = field(default_factory=dict)
     cache_dir: Path | None = None
-    _compliance: dict[str, FloatArray] = field(default_factory=dict, repr=False)
+    _compliance: dict[str, tuple[FloatArray, FloatArray]] = field(default_factory=dict, repr=False)
 
     def nodal_compliance(self) -> tuple[FloatArray, FloatArray]:
         """Return the compliances at the slave and master nodes, computed once and kept.
@@ -293,31 +317,49 @@ class HingeSystem:
         (3 n_s, 3 n_s) and (3 n_m, 3 n_m) [mm/N]. They depend on the mesh only, so every
         configuration, amplitude and friction coefficient reuses them.
         """
-        if not self._compliance:
+        return self.compliance(self.slave_nodes, self.master_nodes)
+
+    def compliance(
+        self, slave_nodes: IntArray, master_nodes: IntArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """Return the compliances at given slave (pin) and master (lug) nodes.
+
+        Args:
+            slave_nodes: Sorted pin nodes, shape (n_s,).
+            master_nodes: Sorted tang/clevis nodes, shape (n_m,).
+
+        Returns:
+            (S_slave (3 n_s, 3 n_s), S_master (3 n_m, 3 n_m)) [mm/N], kept in memory (and on
+            disk with ``cache_dir``) by node set.
+        """
+        key = hashlib.sha256(slave_nodes.tobytes() + b"|" + master_nodes.tobytes()).hexdigest()[:16]
+        if key not in self._compliance:
             t0 = time.perf_counter()
-            cached = self._cache_path()
+            cached = self._cache_path(key)
             if cached is not None and cached.exists():
                 with np.load(cached) as data:
-                    self._compliance = {"slave": data["slave"], "master": data["master"]}
+                    pair = (data["slave"], data["master"])
                 logger.info("nodal compliance read from %s", cached)
             else:
-                self._compliance["slave"] = _restricted_inverse(
-                    self.pin_factor, self.pin_free, _dofs(self.slave_nodes)
-                )
-                self._compliance["master"] = _restricted_inverse(
-                    self.lug_factor, self.lug_free, _dofs(self.master_nodes)
+                pair = (
+                    _restricted_inverse(self.pin_factor, self.pin_free, _dofs(slave_nodes)),
+                    _restricted_inverse(self.lug_factor, self.lug_free, _dofs(master_nodes)),
                 )
                 if cached is not None:
-                    _save_atomic(cached, self._compliance)
-            self.timings_s["compliance"] = time.perf_counter() - t0
-        return self._compliance["slave"], self._compliance["master"]
+                    _save_atomic(cached, {"slave": pair[0], "master": pair[1]})
+            self._compliance[key] = pair
+            self.timings_s["compliance"] = (
+                self.timings_s.get("compliance", 0.0) + time.perf_counter() - t0
+            )
+        return self._compliance[key]
 
-    def _cache_path(self) -> Path | None:
-        """Cache file of the nodal compliances: keyed by the mesh's content and the supports."""
+    def _cache_path(self, nodes_key: str) -> Path | None:
+        """Cache file of nodal compliances: keyed by the mesh's content, supports and node set."""
         if self.cache_dir is None:
             return None
         key = hashlib.sha256(
-            (self.mesh.content_hash() + self.kind.value).encode() + self.pin_support.tobytes()
+            (self.mesh.content_hash() + self.kind.value + nodes_key).encode()
+            + self.pin_support.tobytes()
         ).hexdigest()[:32]
         return self.cache_dir / f"compliance_{key}.npz"
 
@@ -434,6 +476,8 @@ class Condensed:
         G: Rigid map, shape (3m, 7): pin modes then grip [mm per unit α].
         w0: Relative displacement at zero force, shape (m, 3) [mm] (normal part g0).
         wall_s: Condensation time [s].
+        outside: Points outside the contact window (None: no window).
+        C_outside: Their contact operator, shape (3 m_out, n_dof).
     """
 
     geo: ContactGeometry
@@ -442,6 +486,8 @@ class Condensed:
     G: FloatArray
     w0: FloatArray
     wall_s: float
+    outside: ContactGeometry | None = None
+    C_outside: sp.csr_matrix | None = None
 
 
 def _columns(C: sp.csr_matrix, nodes: IntArray) -> sp.csr_matrix:
@@ -449,24 +495,33 @@ def _columns(C: sp.csr_matrix, nodes: IntArray) -> sp.csr_matrix:
     return C[:, _dofs(nodes)]
 
 
-def condense(system: HingeSystem, geo: ContactGeometry) -> Condensed:
+def condense(
+    system: HingeSystem, geo: ContactGeometry, excluded: ContactGeometry | None = None
+) -> Condensed:
     """Condense the hinge on the contact points of a configuration.
 
-    ``W = C_s S_slave C_sᵀ + C_m S_master C_mᵀ`` with the mesh's nodal compliances
-    (computed once per mesh) and this configuration's local operators.
+    ``W = C_s S_slave C_sᵀ + C_m S_master C_mᵀ`` with the nodal compliances of the nodes
+    the points use (computed once per node set) and this configuration's local operators.
+
+    Args:
+        system: The factorised hinge.
+        geo: The contact points solved for.
+        excluded: Points left out of the contact window, kept to check that they stay open.
     """
-    t0 = time.perf_counter()
-    S_slave, S_master = system.nodal_compliance()
+    slave_nodes = np.unique(geo.slave)
+    master_nodes = np.unique(geo.master_nodes)
+    S_slave, S_master = system.compliance(slave_nodes, master_nodes)
     t1 = time.perf_counter()
     C = contact_operator(geo, system.n_dof)
-    Cs = _columns(C, system.slave_nodes)
-    Cm = _columns(C, system.master_nodes)
+    Cs = _columns(C, slave_nodes)
+    Cm = _columns(C, master_nodes)
     W = np.asarray(Cs @ (Cs @ S_slave).T) + np.asarray(Cm @ (Cm @ S_master).T)
     W = 0.5 * (W + W.T)
     G = np.column_stack([C @ system.pin_R, C @ system.u_grip])
     w0 = np.column_stack([geo.g0, np.zeros((len(geo.g0), 2))])
-    del t0
-    return Condensed(geo, C, W, G, w0, time.perf_counter() - t1)
+    outside = None if excluded is None or len(excluded.slave) == 0 else excluded
+    C_out = None if outside is None else contact_operator(outside, system.n_dof)
+    return Condensed(geo, C, W, G, w0, time.perf_counter() - t1, outside, C_out)
 
 
 def displacement(

@@ -145,3 +145,24 @@ def test_failed_increment_is_cut_back_then_raises_with_partial_loop(tight):
 def test_bad_settings_name_themselves(kw, name):
     with pytest.raises(ParameterError, match=name):
         CycleSettings(**kw)
+
+
+def test_contact_window_changes_nothing_but_the_cost(loose, loose_400):
+    windowed = cycle(loose, 0.1, amplitude_n=400.0, mu=0.2, contact_window=0.5)
+    full = (
+        loose_400
+        if loose_400.settings.contact_window == 0
+        else cycle(loose, 0.1, amplitude_n=400.0, mu=0.2, contact_window=0.0)
+    )
+    assert len(windowed.configs[1].geo.slave) < 0.6 * len(full.configs[1].geo.slave)
+    assert windowed.metrics()["eta"] == pytest.approx(full.metrics()["eta"], rel=1e-6)
+    assert windowed.metrics()["disp_at_peak_mm"] == pytest.approx(
+        full.metrics()["disp_at_peak_mm"], rel=1e-6
+    )
+
+
+def test_too_small_contact_window_is_caught(loose):
+    with pytest.raises(ConvergenceError, match="contact window too small") as info:
+        cycle(loose, 0.1, amplitude_n=500.0, mu=0.2, contact_window=1e-5)
+    assert isinstance(info.value.partial, CycleResult)
+    assert info.value.residual > 0
