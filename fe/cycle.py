@@ -16,6 +16,7 @@ Results are measured on the last closed loop +Fg → −Fg → +Fg:
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import time
@@ -63,6 +64,11 @@ class CycleSettings:
         max_cutbacks: Halvings of a failing increment before giving up.
         tol: Contact-solver tolerance on the scaled residual.
         max_iter: Contact Newton iterations per increment before a cut-back.
+        clearance_increments: Increments per stage used instead of
+            ``increments_per_stage`` when Δr > 0. Points that open or close inside an
+            increment make the loop area first-order in the step; at Δr = 0.1 mm, 100 N
+            (default mesh) η was 0.00107 / 0.00096 / 0.00093 with 20 / 40 / 80 increments,
+            while at Δr = 0, 20 increments agree with 40 to 0.03 %.
         contact_window: With clearance, solve only for the points whose initial gap in
             the touching configuration is ≤ contact_window·Δr (0.5: about ±60° around
             the load line); the others are checked to stay open at every load peak, and
@@ -82,6 +88,7 @@ class CycleSettings:
     max_iter: int = 60
     blas_threads: int = 1
     contact_window: float = 0.5
+    clearance_increments: int = 60
 
     def __post_init__(self) -> None:
         check_range("amplitude_n", self.amplitude_n, 0.0, 1e6, lo_open=True)
@@ -92,6 +99,7 @@ class CycleSettings:
         check_range("max_cutbacks", self.max_cutbacks, 0, 20)
         check_range("blas_threads", self.blas_threads, 1, 64)
         check_range("contact_window", self.contact_window, 0.0, 10.0)
+        check_range("clearance_increments", self.clearance_increments, 2, 10_000)
 
     def stages(self) -> list[tuple[float, float, int]]:
         """Return the stages as (F_from, F_to, increments) [N]."""
@@ -295,6 +303,8 @@ def run_cycle(
             ``partial`` is the CycleResult of the increments that converged.
     """
     check_range("clearance_mm", clearance_mm, 0.0, 10.0)
+    if clearance_mm > 0.0:
+        settings = dataclasses.replace(settings, increments_per_stage=settings.clearance_increments)
     t0 = time.perf_counter()
     configs = configs or configurations(
         system, clearance_mm, settings.contact_window

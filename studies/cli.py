@@ -22,6 +22,7 @@ SUBCOMMAND_MODULES = (
     "studies.cmd_trace",
     "studies.cmd_sweep",
     "studies.cmd_compare",
+    "studies.cmd_synth",
 )
 
 

@@ -77,13 +77,14 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if args.frames < 0:
         raise ParameterError(f"frames must be ≥ 0, got {args.frames}")
-    model, mesh_settings, base = _model_from_args(args)
+    model, mesh_settings, base, effects = _model_from_args(args)
     overrides = {
         k: v
         for k, v in {
             "amplitude_n": args.amplitude,
             "mu": args.mu,
             "increments_per_stage": args.increments,
+            "clearance_increments": args.increments,
             "n_cycles": args.cycles,
         }.items()
         if v is not None
@@ -93,7 +94,14 @@ def run(args: argparse.Namespace) -> int:
     meshed = build_and_mesh(model, mesh_settings, args.out)
     system = build_system(meshed.mesh)
     bar = _progress_bar(args)
-    result = run_cycle(system, clearance, settings, progress=None if bar is None else bar.update_to)
+    if effects:  # effects act on the condensed system; the progress bar is not threaded through
+        from fe.effects import run_cycle_with_effects
+
+        result = run_cycle_with_effects(system, clearance, settings, effects).result
+    else:
+        result = run_cycle(
+            system, clearance, settings, progress=None if bar is None else bar.update_to
+        )
     if bar is not None:
         bar.close()
     files = {k: str(v) for k, v in meshed.files.items()}
@@ -125,8 +133,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _model_from_args(args: argparse.Namespace) -> tuple[Any, Any, Any]:
-    """Return (HingeModel, MeshSettings, CycleSettings) from a model file or the options."""
+def _model_from_args(args: argparse.Namespace) -> tuple[Any, Any, Any, dict[str, Any]]:
+    """Return (HingeModel, MeshSettings, CycleSettings, effects) from a model file or the options."""
     from cad.general import make_general_hinge
     from fe.cycle import CycleSettings
 
@@ -136,7 +144,7 @@ def _model_from_args(args: argparse.Namespace) -> tuple[Any, Any, Any]:
                 f"cycle supports --hinge general only for now, got --hinge {args.hinge}"
             )
         model = make_model(args.hinge, clearance_mm=args.clearance)
-        return model, settings_from_args(args), CycleSettings()
+        return model, settings_from_args(args), CycleSettings(), {}
     from validation.model_file import read_model
 
     given = [
@@ -149,16 +157,14 @@ def _model_from_args(args: argparse.Namespace) -> tuple[Any, Any, Any]:
             f"--model describes the geometry and mesh; drop {given or ['--hinge/--refinement']} "
             "(only --amplitude, --mu, --increments, --cycles may override it)"
         )
-    spec = read_model(args.model)
+    from fe.effects import REGISTRY
+
+    spec = read_model(args.model, REGISTRY)
     if spec.kind != "general":
         raise ParameterError(
             f"cycle supports kind = 'general' only for now, got {spec.kind!r} in {args.model}"
         )
-    if spec.effects:
-        raise ParameterError(
-            f"{args.model}: effects are not wired into 'cycle' yet: {sorted(spec.effects)}"
-        )
-    return make_general_hinge(spec.hinge), spec.mesh, spec.cycle
+    return make_general_hinge(spec.hinge), spec.mesh, spec.cycle, dict(spec.effects)
 
 
 def _progress_bar(args: argparse.Namespace) -> Any:

@@ -33,7 +33,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )
     p.add_argument("--mu", type=float, default=DEFAULT_MU, metavar="X", help="friction coefficient")
     p.add_argument(
-        "--increments", type=int, default=20, metavar="N", help="increments per half cycle"
+        "--increments",
+        type=int,
+        default=None,
+        metavar="N",
+        help="increments per half cycle (default 20 at zero clearance, 60 with clearance)",
     )
     p.add_argument(
         "--workers", type=int, default=1, metavar="N", help="Dask worker processes (1: in process)"
@@ -59,7 +63,8 @@ def run(args: argparse.Namespace) -> int:
         clearances_mm=_floats("clearance", args.clearance),
         amplitudes_n=_floats("amplitude", args.amplitude),
         mu=args.mu,
-        increments_per_stage=args.increments,
+        increments_per_stage=args.increments if args.increments is not None else 20,
+        clearance_increments=args.increments if args.increments is not None else 60,
         mesh=settings_from_args(args),
         workers=args.workers,
         study=args.study,

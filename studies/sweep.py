@@ -43,7 +43,8 @@ class SweepSettings:
         clearances_mm: Radial clearances [mm].
         amplitudes_n: Force amplitudes [N].
         mu: Friction coefficient.
-        increments_per_stage: Increments per half cycle.
+        increments_per_stage: Increments per half cycle at zero clearance.
+        clearance_increments: Increments per half cycle with clearance (see CycleSettings).
         mesh: Mesh settings.
         workers: Dask worker processes; 1 runs in this process.
         study: Study name in the trace.
@@ -53,6 +54,7 @@ class SweepSettings:
     amplitudes_n: tuple[float, ...] = (100.0, 200.0, 300.0, 400.0, 500.0)
     mu: float = DEFAULT_MU
     increments_per_stage: int = 20
+    clearance_increments: int = 60
     mesh: MeshSettings = field(default_factory=MeshSettings)
     workers: int = 1
     study: str = "general_hinge"
@@ -142,6 +144,7 @@ def run_geometry(
                 amplitude_n=amplitude,
                 mu=settings.mu,
                 increments_per_stage=settings.increments_per_stage,
+                clearance_increments=settings.clearance_increments,
             )
             result = run_cycle(system, clearance_mm, cyc, configs=configs)
             configs = result.configs  # every amplitude reuses the condensed configurations

@@ -318,7 +318,10 @@ def synthesize(
         base = configurations(system, clearance)
         for case in (c for c in cases if c.clearance_mm == clearance):
             cycle = dataclasses.replace(
-                spec.cycle, amplitude_n=case.amplitude_n, increments_per_stage=n_inc
+                spec.cycle,
+                amplitude_n=case.amplitude_n,
+                increments_per_stage=n_inc,
+                clearance_increments=SYNTH_INCREMENT_FACTOR * spec.cycle.clearance_increments,
             )
             result = run_cycle_with_effects(system, clearance, cycle, truth, configs=base)
             F, d = machine_path(result.result)

@@ -39,6 +39,7 @@ def loose():
 
 def cycle(system, clearance=0.0, **kw) -> CycleResult:
     kw.setdefault("increments_per_stage", 8)
+    kw.setdefault("clearance_increments", kw["increments_per_stage"])
     return run_cycle(system, clearance, CycleSettings(**kw))
 
 

@@ -34,7 +34,7 @@ FG = 400.0
 
 
 def settings(amp=FG, n=6):
-    return CycleSettings(amplitude_n=amp, mu=0.2, increments_per_stage=n)
+    return CycleSettings(amplitude_n=amp, mu=0.2, increments_per_stage=n, clearance_increments=n)
 
 
 def _system(clearance):

@@ -129,3 +129,32 @@ def test_model_file_excludes_geometry_options(tmp_path, capsys):
     model.write_text(MODEL)
     assert main(["cycle", "--model", str(model), "--clearance", "0.1", "--out", str(tmp_path)]) == 1
     assert "--clearance" in capsys.readouterr().err
+
+
+def test_cycle_model_file_with_an_effect(tmp_path, capsys):
+    # series compliance of the frame: same loop area, δ(+Fg) larger by exactly C_f·Fg
+    base = tmp_path / "BASE.toml"
+    base.write_text(MODEL.replace("clearance_mm = 0.05", "clearance_mm = 0.0"))
+    framed = tmp_path / "FRAMED.toml"
+    framed.write_text(
+        base.read_text() + "\n[effects.frame_compliance]\ncompliance_mm_per_n = 1e-5\n"
+    )
+    out = []
+    for model in (base, framed):
+        argv = [
+            "cycle",
+            "--model",
+            str(model),
+            "--out",
+            str(tmp_path / model.stem),
+            "--frames",
+            "0",
+            "--json",
+        ]
+        assert main([*argv, "--no-progress"]) == 0
+        out.append(json.loads(capsys.readouterr().out))
+    assert out[1]["disp_at_peak_mm"] == pytest.approx(
+        out[0]["disp_at_peak_mm"] + 1e-5 * 250.0, rel=1e-9
+    )
+    assert out[1]["W_cycle_Nmm"] == pytest.approx(out[0]["W_cycle_Nmm"], rel=1e-6)
+    assert out[1]["eta"] < out[0]["eta"]

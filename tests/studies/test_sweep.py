@@ -21,7 +21,11 @@ def rows(path):
 
 def test_sweep_records_failures_goes_on_and_resumes(tmp_path):
     settings = SweepSettings(
-        clearances_mm=(0.0,), amplitudes_n=(100.0, -5.0, 400.0), mesh=COARSE, increments_per_stage=6
+        clearances_mm=(0.0,),
+        amplitudes_n=(100.0, -5.0, 400.0),
+        mesh=COARSE,
+        increments_per_stage=6,
+        clearance_increments=6,
     )
     first = run_sweep(settings, tmp_path)
     assert (first.ok, first.failed, first.skipped) == (2, 1, 0)
@@ -49,6 +53,7 @@ def test_sweep_on_dask_workers(tmp_path):
         amplitudes_n=(200.0,),
         mesh=COARSE,
         increments_per_stage=6,
+        clearance_increments=6,
         workers=2,
     )
     out = run_sweep(settings, tmp_path)
