@@ -4,24 +4,29 @@ Force control is exact here (see ``fe.hinge_system``): each increment prescribes
 the grip displacement δ comes out of the contact solve. Increments are graded so the
 steps are small just after each reversal, where the stick zones start to slip.
 
-Results are measured on the last closed loop +Fg → −Fg → +Fg:
-
-* ``W_cycle`` — the loop area ∮F dδ [N·mm] (trapezoidal);
-* ``U_max = ½ F_max δ_max`` — the paper's triangle, with δ_max the half peak-to-peak
-  displacement ``(δ(+Fg) − δ(−Fg))/2`` of the loop with the free play removed;
-* ``η = W_cycle / (2π U_max)`` (the paper's Eq. 1);
-* the energy balance: friction (and open/close) work summed over every contact point
-  against ``W_cycle − ΔE_elastic``.
+This module drives the cycle; the protocol is ``fe.protocol`` and what is measured on
+the result (η, W_cycle, U_max, the energy balance) is ``fe.cycle_result``. Both are
+re-exported here, so ``from fe.cycle import CycleSettings, run_cycle`` is the public API.
 """
 
 from __future__ import annotations
 
+__all__ = [
+    "DEFAULT_MU",
+    "CycleResult",
+    "CycleSettings",
+    "Increment",
+    "configurations",
+    "grip_force",
+    "run_cycle",
+    "seed_state",
+    "stage_targets",
+]
+
 import dataclasses
 import logging
-import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -29,222 +34,14 @@ from threadpoolctl import threadpool_limits
 
 from cad.errors import ConvergenceError, check_range
 from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
-from fe.hinge_system import (
-    Condensed,
-    HingeSystem,
-    condense,
-    contact_geometry,
-    displacement,
-    outside_gaps,
-    split_window,
-)
+from fe.contact_geometry import contact_geometry, split_window
+from fe.cycle_result import CycleResult, Increment
+from fe.hinge_system import Condensed, HingeSystem, condense, displacement, outside_gaps
+from fe.protocol import DEFAULT_MU, CycleSettings, stage_targets
 
 logger = logging.getLogger(__name__)
 
 FloatArray = npt.NDArray[np.float64]
-
-DEFAULT_MU = 0.2
-"""Default pin–hole friction coefficient. The paper gives none; 0.2 is a middle value for
-steel on anodised aluminium with a dry-film lubricant, the usual state of a space hinge
-(dry unlubricated pairs reach 0.4–0.6, MoS₂ films 0.05–0.15)."""
-
-
-@dataclass(frozen=True)
-class CycleSettings:
-    """Load protocol and solver options of a hysteresis cycle.
-
-    Attributes:
-        amplitude_n: Force amplitude Fg [N].
-        mu: Coulomb friction coefficient of every contact pair.
-        increments_per_stage: Increments from one force extreme to the next (the
-            initial 0 → +Fg stage uses half as many).
-        n_cycles: Closed loops −Fg → +Fg after the initial loading (the paper: 1).
-        grading: Exponent of the increment spacing after a reversal (1 = uniform; > 1
-            makes the first steps after each reversal smaller).
-        max_cutbacks: Halvings of a failing increment before giving up.
-        tol: Contact-solver tolerance on the scaled residual.
-        max_iter: Contact Newton iterations per increment before a cut-back.
-        clearance_increments: Increments per stage used instead of
-            ``increments_per_stage`` when Δr > 0. Points that open or close inside an
-            increment make the loop area first-order in the step; at Δr = 0.1 mm, 100 N
-            (default mesh) η was 0.00107 / 0.00096 / 0.00093 with 20 / 40 / 80 increments,
-            while at Δr = 0, 20 increments agree with 40 to 0.03 %.
-        contact_window: With clearance, solve only for the points whose initial gap in
-            the touching configuration is ≤ contact_window·Δr (0.5: about ±60° around
-            the load line); the others are checked to stay open at every load peak, and
-            the cycle stops with a clear error if one closed. 0 solves for every point.
-        blas_threads: BLAS threads for the dense contact solves. Their matrices are a
-            few hundred to a few thousand wide, where two threads on a shared 2-core
-            machine measured 5× slower than one (benchmarks/bench_cycle.py).
-    """
-
-    amplitude_n: float = 400.0
-    mu: float = DEFAULT_MU
-    increments_per_stage: int = 20
-    n_cycles: int = 1
-    grading: float = 1.5
-    max_cutbacks: int = 5
-    tol: float = 1e-10
-    max_iter: int = 60
-    blas_threads: int = 1
-    contact_window: float = 0.5
-    clearance_increments: int = 60
-
-    def __post_init__(self) -> None:
-        check_range("amplitude_n", self.amplitude_n, 0.0, 1e6, lo_open=True)
-        check_range("mu", self.mu, 0.0, 2.0)
-        check_range("increments_per_stage", self.increments_per_stage, 2, 10_000)
-        check_range("n_cycles", self.n_cycles, 1, 100)
-        check_range("grading", self.grading, 1.0, 4.0)
-        check_range("max_cutbacks", self.max_cutbacks, 0, 20)
-        check_range("blas_threads", self.blas_threads, 1, 64)
-        check_range("contact_window", self.contact_window, 0.0, 10.0)
-        check_range("clearance_increments", self.clearance_increments, 2, 10_000)
-
-    def stages(self) -> list[tuple[float, float, int]]:
-        """Return the stages as (F_from, F_to, increments) [N]."""
-        F = self.amplitude_n
-        out = [(0.0, F, max(2, self.increments_per_stage // 2))]
-        for _ in range(self.n_cycles):
-            out += [(F, -F, self.increments_per_stage), (-F, F, self.increments_per_stage)]
-        return out
-
-
-def stage_targets(f_from: float, f_to: float, n: int, grading: float) -> FloatArray:
-    """Force targets of one stage, shape (n,) [N]: ``f_from + (f_to − f_from)·(k/n)^grading``."""
-    s = (np.arange(1, n + 1) / n) ** grading
-    return f_from + (f_to - f_from) * s
-
-
-@dataclass(frozen=True)
-class Increment:
-    """One converged increment.
-
-    Attributes:
-        stage: Stage index (0: initial loading, then 1, 2, … alternating −/+).
-        force_n: Applied force F [N].
-        disp_mm: Grip displacement δ relative to the touching configuration [mm].
-        side: +1 tension configuration, −1 compression configuration.
-        iterations: Contact Newton iterations.
-        n_open: Open points. n_stick: Sticking points. n_slip: Slipping points.
-        friction_work: Friction work of the increment summed over points [N·mm].
-        normal_work: Open/close work of the increment summed over points [N·mm].
-        elastic_energy: Strain energy at the end of the increment [N·mm].
-    """
-
-    stage: int
-    force_n: float
-    disp_mm: float
-    side: int
-    iterations: int
-    n_open: int
-    n_stick: int
-    n_slip: int
-    friction_work: float
-    normal_work: float
-    elastic_energy: float
-
-
-@dataclass(frozen=True)
-class CycleResult:
-    """A computed hysteresis cycle.
-
-    Attributes:
-        settings: The protocol.
-        clearance_mm: Radial clearance of the hinge [mm].
-        increments: Every converged increment in order.
-        free_play_mm: Total rigid travel between the tension and compression touching
-            configurations, 4·Δr [mm] (removed from ``disp_mm``).
-        states: Final contact state of each increment (for fields and files).
-        configs: The condensed configuration of each side (+1, −1).
-        timings_s: Wall time per phase [s].
-    """
-
-    settings: CycleSettings
-    clearance_mm: float
-    increments: tuple[Increment, ...]
-    free_play_mm: float
-    states: tuple[ContactState, ...] = field(repr=False)
-    configs: dict[int, Condensed] = field(repr=False)
-    timings_s: dict[str, float] = field(default_factory=dict)
-
-    def loop_arrays(
-        self, *, with_free_play: bool = False
-    ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int64]]:
-        """Return (force (n+1,) [N], displacement (n+1,) [mm], stage (n+1,)) starting at the origin.
-
-        Args:
-            with_free_play: Add back the ±2Δr rigid offsets of the touching configurations.
-        """
-        F = np.array([0.0] + [i.force_n for i in self.increments])
-        d = np.array([0.0] + [i.disp_mm for i in self.increments])
-        if with_free_play:
-            side = np.array([1] + [i.side for i in self.increments])
-            d = d + side * self.free_play_mm / 2
-        stage = np.array([0] + [i.stage for i in self.increments], dtype=np.int64)
-        return F, d, stage
-
-    def last_loop(self) -> slice:
-        """Slice of increments (into ``loop_arrays``) spanning the last +Fg → −Fg → +Fg loop."""
-        n_stage = len(self.settings.stages())
-        _, _, stage = self.loop_arrays()
-        first = int(np.flatnonzero(stage == n_stage - 2)[0]) - 1  # the +Fg point before it
-        return slice(first, len(stage))
-
-    def loop_work(self, loop: slice | None = None) -> float:
-        """Loop area ∮F dδ of the last (or a given) loop [N·mm], trapezoidal."""
-        F, d, _ = self.loop_arrays()
-        sl = loop or self.last_loop()
-        f, x = F[sl], d[sl]
-        return float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(x)))
-
-    def metrics(self) -> dict[str, float]:
-        """Return η, W_cycle, U_max, peak displacements, stiffness and the energy balance."""
-        F, d, _ = self.loop_arrays()
-        sl = self.last_loop()
-        f, x = F[sl], d[sl]
-        i_min = int(np.argmin(f))
-        d_plus, d_minus = float(x[-1]), float(x[i_min])
-        W = self.loop_work(sl)
-        Fg = self.settings.amplitude_n
-        delta_max = 0.5 * (d_plus - d_minus)
-        U = 0.5 * Fg * delta_max
-        incs = self.increments[sl.start :]  # increments after the loop's start point
-        fric = sum(i.friction_work + i.normal_work for i in incs)
-        dE = incs[-1].elastic_energy - self.increments[sl.start - 1].elastic_energy
-        per_cycle = self.work_per_cycle()
-        return {
-            "eta": W / (2 * math.pi * U) if U > 0 else float("nan"),
-            "W_cycle_Nmm": W,
-            "U_max_Nmm": U,
-            "delta_max_mm": delta_max,
-            "disp_at_peak_mm": d_plus,
-            "disp_at_minus_peak_mm": d_minus,
-            "secant_stiffness_N_per_mm": 2 * Fg / (d_plus - d_minus)
-            if d_plus > d_minus
-            else float("nan"),
-            "free_play_mm": self.free_play_mm,
-            "friction_work_Nmm": fric,
-            "elastic_energy_change_Nmm": dE,
-            "energy_balance_rel_err": abs(W - dE - fric) / max(abs(W), 1e-300),
-            "loop_closure_mm": float(x[-1] - x[0]),
-            "W_change_last_two_cycles_rel": (
-                abs(per_cycle[-1] - per_cycle[-2]) / max(abs(per_cycle[-1]), 1e-300)
-                if len(per_cycle) > 1
-                else float("nan")
-            ),
-            "reported_cycle": float(self.settings.n_cycles),
-        }
-
-    def work_per_cycle(self) -> list[float]:
-        """Loop area of every closed cycle [N·mm]."""
-        _, _, stage = self.loop_arrays()
-        out = []
-        for c in range(self.settings.n_cycles):
-            first = int(np.flatnonzero(stage == 1 + 2 * c)[0]) - 1
-            last = int(np.flatnonzero(stage == 2 + 2 * c)[-1]) + 1
-            out.append(self.loop_work(slice(first, last)))
-        return out
 
 
 def configurations(

@@ -44,11 +44,10 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
-from scipy.spatial import cKDTree
 
-from cad.errors import MeshQualityError, ParameterError
-from cad.surfaces import Cylinder
-from fe.assembly import Factorization, assemble_stiffness
+from cad.errors import MeshQualityError
+from fe.assembly import Factorization, assemble_stiffness, dofs_of
+from fe.contact_geometry import ContactGeometry, contact_operator
 from fe.element import ElementType
 from mesh.hexmesh import HexMesh
 
@@ -61,205 +60,12 @@ BLOCK_RHS = 128
 """Right-hand sides per block solve when condensing (see benchmarks/bench_assembly.py)."""
 
 
-@dataclass(frozen=True)
-class ContactGeometry:
-    """Contact points in one configuration.
-
-    Attributes:
-        slave: Slave node per point, shape (m,), int64.
-        pair: Pair index per point (into ``HexMesh.pairs``), shape (m,), int64.
-        frame: Local frames, shape (m, 3, 3): rows n, t1, t2 (unit, global components).
-        g0: Initial normal gap from the exact surfaces, shape (m,) [mm].
-        master_nodes: Nodes of the master facet each point projects on, shape (m, 4), int64.
-        master_weights: Bilinear weights at the projection, shape (m, 4).
-        area_mm2: Slave nodal area, shape (m,) [mm²].
-    """
-
-    slave: IntArray
-    pair: IntArray
-    frame: FloatArray
-    g0: FloatArray
-    master_nodes: IntArray
-    master_weights: FloatArray
-    area_mm2: FloatArray
-
-
-def _bilinear(xi: FloatArray, eta: FloatArray) -> FloatArray:
-    """Quad shape functions at (xi, eta), shape (n, 4), counter-clockwise node order."""
-    return 0.25 * np.stack(
-        [(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta), (1 - xi) * (1 + eta)],
-        axis=1,
-    )
-
-
-def project_on_facets(
-    points: FloatArray, nodes: FloatArray, facets: IntArray, *, n_candidates: int = 8
-) -> tuple[IntArray, FloatArray, FloatArray]:
-    """Closest-point projection of points on a set of bilinear quad facets.
-
-    Args:
-        points: Points to project, shape (m, 3) [mm].
-        nodes: Mesh coordinates, shape (n_nodes, 3) [mm].
-        facets: Quads, shape (n_f, 4), int64.
-        n_candidates: Nearest facet centroids tried per point.
-
-    Returns:
-        (facet index (m,), local coordinates (m, 2) in [-1, 1]², distance (m,) [mm]).
-    """
-    q = nodes[facets]  # (n_f, 4, 3)
-    tree = cKDTree(q.mean(axis=1))
-    k = min(n_candidates, len(facets))
-    _, cand = tree.query(points, k=k)
-    cand = cand.reshape(len(points), k)
-    best_f = np.zeros(len(points), dtype=np.int64)
-    best_x = np.zeros((len(points), 2))
-    best_d = np.full(len(points), np.inf)
-    best_out = np.full(len(points), np.inf)
-    for j in range(k):
-        f = cand[:, j]
-        x = q[f]  # (m, 4, 3)
-        s = np.zeros((len(points), 2))
-        for _ in range(8):  # Newton on the tangent-plane equations
-            N = _bilinear(s[:, 0], s[:, 1])
-            dxi = 0.25 * np.stack(
-                [-(1 - s[:, 1]), (1 - s[:, 1]), (1 + s[:, 1]), -(1 + s[:, 1])], axis=1
-            )
-            deta = 0.25 * np.stack(
-                [-(1 - s[:, 0]), -(1 + s[:, 0]), (1 + s[:, 0]), (1 - s[:, 0])], axis=1
-            )
-            r = np.einsum("mn,mni->mi", N, x) - points
-            a1 = np.einsum("mn,mni->mi", dxi, x)
-            a2 = np.einsum("mn,mni->mi", deta, x)
-            A = np.stack(
-                [
-                    np.stack([(a1 * a1).sum(1), (a1 * a2).sum(1)], 1),
-                    np.stack([(a1 * a2).sum(1), (a2 * a2).sum(1)], 1),
-                ],
-                1,
-            )  # (m, 2, 2)
-            b = -np.stack([(r * a1).sum(1), (r * a2).sum(1)], 1)
-            s = s + np.linalg.solve(A, b[..., None])[..., 0]
-        N = _bilinear(s[:, 0], s[:, 1])
-        d = np.linalg.norm(np.einsum("mn,mni->mi", N, x) - points, axis=1)
-        out = np.maximum(np.abs(s).max(axis=1) - 1.0, 0.0)
-        better = (out < best_out - 1e-12) | ((np.abs(out - best_out) <= 1e-12) & (d < best_d))
-        best_f[better], best_x[better], best_d[better], best_out[better] = (
-            f[better],
-            s[better],
-            d[better],
-            out[better],
-        )
-    if np.any(best_out > 1e-6):
-        i = int(np.argmax(best_out))
-        raise MeshQualityError(
-            f"contact point {i} at {points[i].round(4).tolist()} mm projects outside every master facet "
-            f"(local coordinate overshoot {best_out[i]:.3g})"
-        )
-    return best_f, np.clip(best_x, -1.0, 1.0), best_d
-
-
-def closest_point(surface: Cylinder, x: FloatArray) -> FloatArray:
-    """Closest points on an exact surface, shape (m, 3) [mm].
-
-    ``x − g n`` with g the signed distance and n the outward normal: a point at distance
-    g on the non-material side moves back along −n onto the surface.
-    """
-    return x - surface.distance_outside(x)[:, None] * surface.outward_normal(x)
-
-
-def split_window(geo: ContactGeometry, window_mm: float) -> tuple[ContactGeometry, ContactGeometry]:
-    """Split contact points into those with an initial gap ≤ ``window_mm`` and the rest.
-
-    Returns:
-        (inside the window, outside it), each a ContactGeometry.
-    """
-    inside = geo.g0 <= window_mm
-
-    def pick(mask: npt.NDArray[np.bool_]) -> ContactGeometry:
-        return ContactGeometry(
-            *(np.asarray(getattr(geo, f))[mask] for f in geo.__dataclass_fields__)
-        )
-
-    return pick(inside), pick(~inside)
-
-
 def outside_gaps(cond: Condensed, u: FloatArray) -> FloatArray:
     """Normal gaps of the points outside the contact window, shape (m_out,) [mm]."""
     if cond.outside is None or cond.C_outside is None:
         return np.zeros(0)
     w = cond.C_outside @ np.ravel(u)
     return np.asarray(cond.outside.g0 + w[0::3])
-
-
-def contact_geometry(mesh: HexMesh, shift_mm: dict[str, FloatArray]) -> ContactGeometry:
-    """Build the contact points of every contact pair in a configuration.
-
-    Args:
-        mesh: The hinge mesh (pairs, facet sets and exact surfaces).
-        shift_mm: Pair name → rigid offset of the slave relative to the master in this
-            configuration, shape (3,) [mm].
-
-    Returns:
-        The contact geometry, points ordered pair by pair.
-    """
-    parts = []
-    for ip, pair in enumerate(mesh.pairs):
-        if pair.kind.value != "contact":
-            continue
-        master = mesh.surfaces[pair.master]
-        if not isinstance(master, Cylinder):
-            raise ParameterError(
-                f"pair {pair.name!r}: master surface must be a Cylinder, got {type(master).__name__}"
-            )
-        ids, area, _ = mesh.nodal_areas(pair.slave)
-        x = np.asarray(mesh.nodes)[ids] + shift_mm[pair.name]  # (m, 3) slave in this configuration
-        g0 = master.distance_outside(x)
-        n = master.outward_normal(x)  # into the hole, toward the slave
-        axis = np.asarray(master.axis, dtype=np.float64) / np.linalg.norm(master.axis)
-        t1 = np.cross(axis, n)
-        t1 /= np.linalg.norm(t1, axis=1)[:, None]
-        t2 = np.cross(n, t1)
-        foot = closest_point(master, x)
-        facets = mesh.facet_sets[pair.master]
-        f, s, _ = project_on_facets(foot, np.asarray(mesh.nodes), facets)
-        parts.append(
-            (
-                ids,
-                np.full(len(ids), ip),
-                np.stack([n, t1, t2], axis=1),
-                g0,
-                facets[f],
-                _bilinear(s[:, 0], s[:, 1]),
-                area,
-            )
-        )
-    cols = list(zip(*parts, strict=True))
-    return ContactGeometry(*(np.concatenate(c) for c in cols))
-
-
-def contact_operator(geo: ContactGeometry, n_dof: int) -> sp.csr_matrix:
-    """Return C, shape (3m, n_dof): relative displacement (slave − master) in local frames."""
-    m = len(geo.slave)
-    rows = np.repeat(np.arange(3 * m), 3).reshape(m, 3, 3)  # (m, k, j)
-    vals_s = geo.frame  # (m, k, j)
-    cols_s = 3 * geo.slave[:, None, None] + np.arange(3)[None, None, :]
-    cols_s = np.broadcast_to(cols_s, (m, 3, 3))
-    # master: −N_a n_k·e_j at node a
-    vals_m = -geo.master_weights[:, None, :, None] * geo.frame[:, :, None, :]  # (m, k, a, j)
-    cols_m = 3 * geo.master_nodes[:, None, :, None] + np.arange(3)[None, None, None, :]
-    cols_m = np.broadcast_to(cols_m, (m, 3, 4, 3))
-    rows_m = np.broadcast_to(np.arange(3 * m).reshape(m, 3)[:, :, None, None], (m, 3, 4, 3))
-    C = sp.coo_matrix(
-        (
-            np.concatenate([vals_s.ravel(), vals_m.ravel()]),
-            (
-                np.concatenate([rows.ravel(), rows_m.ravel()]),
-                np.concatenate([cols_s.ravel(), cols_m.ravel()]),
-            ),
-        ),
-        shape=(3 * m, n_dof),
-    )
-    return C.tocsr()
 
 
 def rigid_modes(nodes: FloatArray, centre: FloatArray) -> FloatArray:
@@ -271,10 +77,6 @@ def rigid_modes(nodes: FloatArray, centre: FloatArray) -> FloatArray:
     R[:, :, 4] = np.cross([0, 1.0, 0], d)
     R[:, :, 5] = np.cross([0, 0, 1.0], d)
     return R.reshape(-1, 6)
-
-
-def _dofs(nodes: IntArray) -> IntArray:
-    return (3 * nodes[:, None] + np.arange(3)).ravel().astype(np.int64)
 
 
 @dataclass
@@ -342,8 +144,8 @@ class HingeSystem:
                 logger.info("nodal compliance read from %s", cached)
             else:
                 pair = (
-                    _restricted_inverse(self.pin_factor, self.pin_free, _dofs(slave_nodes)),
-                    _restricted_inverse(self.lug_factor, self.lug_free, _dofs(master_nodes)),
+                    _restricted_inverse(self.pin_factor, self.pin_free, dofs_of(slave_nodes)),
+                    _restricted_inverse(self.lug_factor, self.lug_free, dofs_of(master_nodes)),
                 )
                 if cached is not None:
                     _save_atomic(cached, {"slave": pair[0], "master": pair[1]})
@@ -394,8 +196,8 @@ def build_system(
     t_asm = time.perf_counter() - t0
     n_dof = 3 * mesh.n_nodes
     lug_nodes = np.concatenate([mesh.part_nodes("tang"), mesh.part_nodes("clevis")])
-    fixed = _dofs(np.concatenate([mesh.set_nodes("tang_fixed"), mesh.set_nodes("clevis_load")]))
-    lug_free = np.setdiff1d(_dofs(lug_nodes), fixed)
+    fixed = dofs_of(np.concatenate([mesh.set_nodes("tang_fixed"), mesh.set_nodes("clevis_load")]))
+    lug_free = np.setdiff1d(dofs_of(lug_nodes), fixed)
     pin_nodes = mesh.part_nodes("pin")
     x = np.asarray(mesh.nodes)[pin_nodes]
     lo, hi = x[:, 2].min(), x[:, 2].max()
@@ -406,10 +208,10 @@ def build_system(
 
     a, b, c = near((0, 0, lo)), near((0, 0, hi)), near((r, 0, lo))
     support = np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * c + 1], dtype=np.int64)
-    pin_free = np.setdiff1d(_dofs(pin_nodes), support)
+    pin_free = np.setdiff1d(dofs_of(pin_nodes), support)
     centre = x.mean(axis=0)
     R = np.zeros((n_dof, 6))
-    R[_dofs(pin_nodes)] = rigid_modes(x, centre)
+    R[dofs_of(pin_nodes)] = rigid_modes(x, centre)
     u_grip = np.zeros(n_dof)
     u_grip[3 * mesh.part_nodes("clevis")] = 1.0
     t1 = time.perf_counter()
@@ -492,7 +294,7 @@ class Condensed:
 
 def _columns(C: sp.csr_matrix, nodes: IntArray) -> sp.csr_matrix:
     """Columns of C at the DOFs of ``nodes``, shape (3m, 3 len(nodes))."""
-    return C[:, _dofs(nodes)]
+    return C[:, dofs_of(nodes)]
 
 
 def condense(

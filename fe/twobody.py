@@ -49,14 +49,14 @@ import scipy.sparse as sp
 
 from cad.errors import MeshQualityError, ParameterError
 from fe.assembly import Factorization, assemble_stiffness
-from fe.element import ElementType
-from fe.hinge_system import (
-    BLOCK_RHS,
+from fe.contact_geometry import (
     ContactGeometry,
-    _bilinear,
+    bilinear_weights,
     contact_operator,
     project_on_facets,
 )
+from fe.element import ElementType
+from fe.hinge_system import BLOCK_RHS
 from mesh.hexmesh import HexMesh
 
 logger = logging.getLogger(__name__)
@@ -219,7 +219,7 @@ def two_body_geometry(
         frame=np.stack([n, t1, t2], axis=1),
         g0=g0,
         master_nodes=facets[f],
-        master_weights=_bilinear(s[:, 0], s[:, 1]),
+        master_weights=bilinear_weights(s[:, 0], s[:, 1]),
         area_mm2=area,
     )
 

@@ -7,7 +7,7 @@ import pytest
 
 from cad.general import GeneralHingeParams, make_general_hinge
 from cad.surfaces import Cylinder
-from fe.hinge_system import closest_point, contact_geometry
+from fe.contact_geometry import closest_point, contact_geometry
 
 pytest.importorskip("gmsh")
 from mesh.build import mesh_hinge

@@ -1,0 +1,156 @@
+"""A computed hysteresis cycle: its increments, loop, loss factor and energy balance.
+
+Results are measured on the last closed loop +Fg → −Fg → +Fg:
+
+* ``W_cycle`` — the loop area ∮F dδ [N·mm] (trapezoidal);
+* ``U_max = ½ F_max δ_max`` — the paper's triangle, with δ_max the half peak-to-peak
+  displacement ``(δ(+Fg) − δ(−Fg))/2`` of the loop with the free play removed;
+* ``η = W_cycle / (2π U_max)`` (the paper's Eq. 1);
+* the energy balance: friction (and open/close) work summed over every contact point
+  against ``W_cycle − ΔE_elastic``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from fe.contact import ContactState
+from fe.hinge_system import Condensed
+from fe.protocol import CycleSettings
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Increment:
+    """One converged increment.
+
+    Attributes:
+        stage: Stage index (0: initial loading, then 1, 2, … alternating −/+).
+        force_n: Applied force F [N].
+        disp_mm: Grip displacement δ relative to the touching configuration [mm].
+        side: +1 tension configuration, −1 compression configuration.
+        iterations: Contact Newton iterations.
+        n_open: Open points. n_stick: Sticking points. n_slip: Slipping points.
+        friction_work: Friction work of the increment summed over points [N·mm].
+        normal_work: Open/close work of the increment summed over points [N·mm].
+        elastic_energy: Strain energy at the end of the increment [N·mm].
+    """
+
+    stage: int
+    force_n: float
+    disp_mm: float
+    side: int
+    iterations: int
+    n_open: int
+    n_stick: int
+    n_slip: int
+    friction_work: float
+    normal_work: float
+    elastic_energy: float
+
+
+@dataclass(frozen=True)
+class CycleResult:
+    """A computed hysteresis cycle.
+
+    Attributes:
+        settings: The protocol.
+        clearance_mm: Radial clearance of the hinge [mm].
+        increments: Every converged increment in order.
+        free_play_mm: Total rigid travel between the tension and compression touching
+            configurations, 4·Δr [mm] (removed from ``disp_mm``).
+        states: Final contact state of each increment (for fields and files).
+        configs: The condensed configuration of each side (+1, −1).
+        timings_s: Wall time per phase [s].
+    """
+
+    settings: CycleSettings
+    clearance_mm: float
+    increments: tuple[Increment, ...]
+    free_play_mm: float
+    states: tuple[ContactState, ...] = field(repr=False)
+    configs: dict[int, Condensed] = field(repr=False)
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    def loop_arrays(
+        self, *, with_free_play: bool = False
+    ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int64]]:
+        """Return (force (n+1,) [N], displacement (n+1,) [mm], stage (n+1,)) starting at the origin.
+
+        Args:
+            with_free_play: Add back the ±2Δr rigid offsets of the touching configurations.
+        """
+        F = np.array([0.0] + [i.force_n for i in self.increments])
+        d = np.array([0.0] + [i.disp_mm for i in self.increments])
+        if with_free_play:
+            side = np.array([1] + [i.side for i in self.increments])
+            d = d + side * self.free_play_mm / 2
+        stage = np.array([0] + [i.stage for i in self.increments], dtype=np.int64)
+        return F, d, stage
+
+    def last_loop(self) -> slice:
+        """Slice of increments (into ``loop_arrays``) spanning the last +Fg → −Fg → +Fg loop."""
+        n_stage = len(self.settings.stages())
+        _, _, stage = self.loop_arrays()
+        first = int(np.flatnonzero(stage == n_stage - 2)[0]) - 1  # the +Fg point before it
+        return slice(first, len(stage))
+
+    def loop_work(self, loop: slice | None = None) -> float:
+        """Loop area ∮F dδ of the last (or a given) loop [N·mm], trapezoidal."""
+        F, d, _ = self.loop_arrays()
+        sl = loop or self.last_loop()
+        f, x = F[sl], d[sl]
+        return float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(x)))
+
+    def metrics(self) -> dict[str, float]:
+        """Return η, W_cycle, U_max, peak displacements, stiffness and the energy balance."""
+        F, d, _ = self.loop_arrays()
+        sl = self.last_loop()
+        f, x = F[sl], d[sl]
+        i_min = int(np.argmin(f))
+        d_plus, d_minus = float(x[-1]), float(x[i_min])
+        W = self.loop_work(sl)
+        Fg = self.settings.amplitude_n
+        delta_max = 0.5 * (d_plus - d_minus)
+        U = 0.5 * Fg * delta_max
+        incs = self.increments[sl.start :]  # increments after the loop's start point
+        fric = sum(i.friction_work + i.normal_work for i in incs)
+        dE = incs[-1].elastic_energy - self.increments[sl.start - 1].elastic_energy
+        per_cycle = self.work_per_cycle()
+        return {
+            "eta": W / (2 * math.pi * U) if U > 0 else float("nan"),
+            "W_cycle_Nmm": W,
+            "U_max_Nmm": U,
+            "delta_max_mm": delta_max,
+            "disp_at_peak_mm": d_plus,
+            "disp_at_minus_peak_mm": d_minus,
+            "secant_stiffness_N_per_mm": 2 * Fg / (d_plus - d_minus)
+            if d_plus > d_minus
+            else float("nan"),
+            "free_play_mm": self.free_play_mm,
+            "friction_work_Nmm": fric,
+            "elastic_energy_change_Nmm": dE,
+            "energy_balance_rel_err": abs(W - dE - fric) / max(abs(W), 1e-300),
+            "loop_closure_mm": float(x[-1] - x[0]),
+            "W_change_last_two_cycles_rel": (
+                abs(per_cycle[-1] - per_cycle[-2]) / max(abs(per_cycle[-1]), 1e-300)
+                if len(per_cycle) > 1
+                else float("nan")
+            ),
+            "reported_cycle": float(self.settings.n_cycles),
+        }
+
+    def work_per_cycle(self) -> list[float]:
+        """Loop area of every closed cycle [N·mm]."""
+        _, _, stage = self.loop_arrays()
+        out = []
+        for c in range(self.settings.n_cycles):
+            first = int(np.flatnonzero(stage == 1 + 2 * c)[0]) - 1
+            last = int(np.flatnonzero(stage == 2 + 2 * c)[-1]) + 1
+            out.append(self.loop_work(slice(first, last)))
+        return out
