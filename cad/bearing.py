@@ -68,6 +68,7 @@ from cad.model import (
     Slab,
     SurfacePair,
     Sweep,
+    grip_faces,
 )
 from cad.surfaces import Cylinder, Plane, Sphere, Torus
 
@@ -536,15 +537,7 @@ def _named_faces(p: BearingHingeParams) -> dict[str, NamedFace]:
     tang_bore = Cylinder(*axis, r_o, material_inside=False)
     seat_box = _zbox(z["bearing_1"], r_o + SURFACE_TOL_MM)
     faces = [
-        NamedFace(
-            "tang_fixed", "tang", FaceRole.FIXED, Plane((-p.tang_length_mm, 0, 0), (-1, 0, 0))
-        ),
-        NamedFace(
-            "clevis_load",
-            "clevis",
-            FaceRole.LOAD,
-            Plane((p.clevis_length_mm + p.clevis_base_mm, 0, 0), (1, 0, 0)),
-        ),
+        *grip_faces(p.tang_length_mm, p.clevis_length_mm + p.clevis_base_mm),
         NamedFace(
             "plate_preload",
             "preload_plate",

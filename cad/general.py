@@ -31,8 +31,18 @@ import build123d as bd
 from cad.errors import check_range
 from cad.kernel import checked_solid, extrude_faces, single_face
 from cad.materials import ALUMINIUM, STEEL_45, Material
-from cad.model import FaceRole, HingeModel, NamedFace, PairKind, Part, Slab, SurfacePair, Sweep
-from cad.surfaces import Cylinder, Plane
+from cad.model import (
+    FaceRole,
+    HingeModel,
+    NamedFace,
+    PairKind,
+    Part,
+    Slab,
+    SurfacePair,
+    Sweep,
+    grip_faces,
+)
+from cad.surfaces import Cylinder
 
 MIN_WALL_MM = 1.0
 """Smallest lug wall (outer radius minus hole radius) accepted [mm]."""
@@ -277,15 +287,7 @@ def _named_faces(p: GeneralHingeParams) -> dict[str, NamedFace]:
         return ((-far, -far, rng[0] - tol), (far, far, rng[1] + tol))
 
     faces = [
-        NamedFace(
-            "tang_fixed", "tang", FaceRole.FIXED, Plane((-p.tang_length_mm, 0, 0), (-1, 0, 0))
-        ),
-        NamedFace(
-            "clevis_load",
-            "clevis",
-            FaceRole.LOAD,
-            Plane((p.clevis_length_mm + p.clevis_base_mm, 0, 0), (1, 0, 0)),
-        ),
+        *grip_faces(p.tang_length_mm, p.clevis_length_mm + p.clevis_base_mm),
         NamedFace("tang_hole", "tang", FaceRole.CONTACT_MASTER, hole, zbox(z["tang"])),
         NamedFace("clevis_hole_1", "clevis", FaceRole.CONTACT_MASTER, hole, zbox(z["clevis_1"])),
         NamedFace("clevis_hole_2", "clevis", FaceRole.CONTACT_MASTER, hole, zbox(z["clevis_2"])),

@@ -17,7 +17,7 @@ from enum import Enum
 from typing import Any
 
 from cad.materials import Material
-from cad.surfaces import Surface
+from cad.surfaces import Plane, Surface
 
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
 """Axis-aligned box ((xmin, ymin, zmin), (xmax, ymax, zmax)) [mm]."""
@@ -157,3 +157,19 @@ class HingeModel:
     def volumes_mm3(self) -> dict[str, float]:
         """Return each part's solid volume [mm³]."""
         return {p.name: float(p.solid.volume) for p in self.parts}
+
+
+def grip_faces(tang_length_mm: float, clevis_end_mm: float) -> list[NamedFace]:
+    """Return the two faces a test machine holds, the same for every hinge kind.
+
+    Args:
+        tang_length_mm: The tang's fixed end lies at x = −tang_length_mm.
+        clevis_end_mm: The clevis load face lies at x = clevis_end_mm.
+
+    Returns:
+        ``tang_fixed`` (FIXED, normal −x) and ``clevis_load`` (LOAD, normal +x).
+    """
+    return [
+        NamedFace("tang_fixed", "tang", FaceRole.FIXED, Plane((-tang_length_mm, 0, 0), (-1, 0, 0))),
+        NamedFace("clevis_load", "clevis", FaceRole.LOAD, Plane((clevis_end_mm, 0, 0), (1, 0, 0))),
+    ]

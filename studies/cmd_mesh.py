@@ -29,6 +29,11 @@ def add_geometry_arguments(p: argparse.ArgumentParser) -> None:
         metavar="N",
         help="axial bearing preload of the bearing hinge [N] (default 0)",
     )
+    add_mesh_arguments(p)
+
+
+def add_mesh_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the mesh-size options (shared with ``cycle`` and ``sweep``)."""
     p.add_argument(
         "--refinement", type=int, default=0, metavar="K", help="mesh level; each halves sizes (0-4)"
     )

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from cad.errors import ParameterError
 from fe.cycle import DEFAULT_MU
-from studies.cmd_mesh import settings_from_args
+from studies.cmd_mesh import add_mesh_arguments, settings_from_args
 from studies.pipeline import dumps
 from studies.sweep import SweepSettings, run_sweep
 
@@ -42,13 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument(
         "--workers", type=int, default=1, metavar="N", help="Dask worker processes (1: in process)"
     )
-    p.add_argument(
-        "--size", type=float, default=None, metavar="MM", help="global element size [mm]"
-    )
-    p.add_argument(
-        "--contact-size", type=float, default=None, metavar="MM", help="contact element size [mm]"
-    )
-    p.add_argument("--refinement", type=int, default=0, metavar="K", help="mesh level (0-4)")
+    add_mesh_arguments(p)
     p.add_argument("--study", default="general_hinge", help="study name in the trace")
     p.add_argument(
         "--out", type=Path, required=True, metavar="DIR", help="output folder (rerun to resume)"
