@@ -23,6 +23,8 @@ SUBCOMMAND_MODULES = (
     "studies.cmd_sweep",
     "studies.cmd_compare",
     "studies.cmd_synth",
+    "studies.cmd_diagnose",
+    "studies.cmd_calibrate",
 )
 
 

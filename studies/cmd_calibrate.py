@@ -1,0 +1,62 @@
+"""``hingelab calibrate``: add effects to the model, fit them, and log the error ledger.
+
+``hingelab calibrate MODEL.toml DATA_DIR --effects NAME[,NAME] --out DIR [--json]`` fits
+the named effects' parameters (``validation.calibrate``), writes the extended model to
+``DIR/MODEL.toml``, appends baseline → +effect → … to ``DIR/ledger.json`` and
+``DIR/ledger.csv`` and draws ``DIR/ledger.png`` (error per step, held-out error, noise
+level). Run ``hingelab compare DIR/MODEL.toml DATA_DIR`` for the per-case comparison.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from studies.pipeline import dumps
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Add the ``calibrate`` subcommand."""
+    p = sub.add_parser("calibrate", help="fit named effects, write the model, log the error")
+    p.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
+    p.add_argument("data", type=Path, metavar="DATA_DIR", help="measurement folder (cases.csv)")
+    p.add_argument("--effects", required=True, metavar="NAME[,NAME]", help="effects to add")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    p.add_argument("--json", action="store_true", help="print the ledger as JSON")
+    p.add_argument("--model-error", type=float, default=0.02, metavar="REL", help="model floor")
+    p.add_argument("--increments", type=int, default=8, metavar="N", help="increments per stage")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``hingelab calibrate``."""
+    from fe.effects import REGISTRY
+    from validation.calibrate import append_ledger, calibrate, plot_ledger
+    from validation.diagnose import DiagnoseSettings
+    from validation.features import FeatureSettings
+    from validation.measurements import read_measurement_set
+    from validation.model_file import read_model, write_model
+
+    spec = read_model(args.model, REGISTRY)
+    data = read_measurement_set(args.data)
+    names = [n.strip() for n in args.effects.split(",") if n.strip()]
+    settings = DiagnoseSettings(
+        features=FeatureSettings(rel_floor=args.model_error),
+        increments_per_stage=args.increments,
+        clearance_increments=2 * args.increments,
+    )
+    new_spec, rows = calibrate(spec, data, names, settings)
+    model_out = write_model(new_spec, args.out / "MODEL.toml")
+    every = append_ledger(args.out, rows)
+    png = plot_ledger(every, args.out / "ledger.png")
+    if args.json:
+        print(dumps({"model": str(model_out), "ledger": every, "plot": str(png)}))
+    else:
+        for r in every:
+            params = ", ".join(f"{k} = {v:.3g}" for k, v in r["params"].items())
+            print(
+                f"{r['step']:<24} error {r['error']:8.2f} σ  held-out {r['heldout_error']:8.2f} σ  "
+                f"BIC {r['bic']:9.1f}  {params}"
+            )
+        print(f"model written to {model_out}; ledger in {args.out}/ (ledger.json, .csv, .png)")
+    return 0

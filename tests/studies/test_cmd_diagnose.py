@@ -1,0 +1,99 @@
+"""``hingelab diagnose`` and ``hingelab calibrate``: argument wiring and output (the FE is stubbed)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from studies.cli import main
+
+
+@pytest.fixture
+def model_path(tmp_path):
+    from cad.general import GeneralHingeParams
+    from validation.model_file import ModelSpec, write_model
+
+    return write_model(ModelSpec("general", GeneralHingeParams()), tmp_path / "MODEL.toml")
+
+
+@pytest.fixture
+def stubs(monkeypatch):
+    import validation.calibrate
+    import validation.diagnose
+    import validation.measurements
+    from validation.calibrate import LedgerRow
+    from validation.diagnose import Diagnosis
+
+    def fake_diagnose(spec, data, settings=None, evaluator=None):
+        return Diagnosis(
+            "no_missing_effect",
+            (),
+            "consistent",
+            ("no systematic pattern beyond the noise",),
+            12,
+            10.0,
+            26.2,
+            (),
+            {},
+            None,
+            {"n_cycles": 0, "wall_s": 0.0},
+        )
+
+    def fake_calibrate(spec, data, names, settings=None):
+        rows = [
+            LedgerRow("baseline", {}, 0, 900.0, 8.7, 8.7, 900.0, 900.0),
+            LedgerRow(
+                "+frame_compliance",
+                {"frame_compliance.compliance_mm_per_n": 2e-5},
+                1,
+                12.0,
+                1.0,
+                1.1,
+                14.0,
+                14.5,
+            ),
+        ]
+        import dataclasses
+
+        return dataclasses.replace(
+            spec, effects={"frame_compliance": {"compliance_mm_per_n": 2e-5}}
+        ), rows
+
+    monkeypatch.setattr(validation.diagnose, "diagnose", fake_diagnose)
+    monkeypatch.setattr(validation.calibrate, "calibrate", fake_calibrate)
+    monkeypatch.setattr(validation.measurements, "read_measurement_set", lambda path: None)
+
+
+def test_diagnose_prints_json(model_path, tmp_path, stubs, capsys):
+    assert main(["diagnose", str(model_path), str(tmp_path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["verdict"] == "no_missing_effect"
+    assert out["features"] == ["delta_max_mm", "W_cycle_Nmm", "opening_mm"]
+
+
+def test_calibrate_writes_model_ledger_and_plot(model_path, tmp_path, stubs, capsys):
+    from fe.effects import REGISTRY
+    from validation.model_file import read_model
+
+    out = tmp_path / "cal"
+    argv = [
+        "calibrate",
+        str(model_path),
+        str(tmp_path),
+        "--effects",
+        "frame_compliance",
+        "--out",
+        str(out),
+    ]
+    assert main(argv) == 0
+    assert "+frame_compliance" in capsys.readouterr().out
+    spec = read_model(out / "MODEL.toml", REGISTRY)
+    assert np.isclose(spec.effects["frame_compliance"]["compliance_mm_per_n"], 2e-5)
+    assert (out / "ledger.png").is_file()
+    assert (out / "ledger.csv").is_file()
+    assert [r["step"] for r in json.loads((out / "ledger.json").read_text())] == [
+        "baseline",
+        "+frame_compliance",
+    ]

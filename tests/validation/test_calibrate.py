@@ -1,0 +1,68 @@
+"""validation.calibrate: the ledger file and its plot (fast, no FE)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from cad.errors import ParameterError
+from validation.calibrate import LedgerRow, append_ledger, calibrate, plot_ledger
+
+
+def _rows():
+    return [
+        LedgerRow("baseline", {}, 0, 900.0, 10.0, 10.0, 900.0, 900.0),
+        LedgerRow(
+            "+frame_compliance",
+            {"frame_compliance.compliance_mm_per_n": 2e-5},
+            1,
+            9.0,
+            1.0,
+            1.2,
+            11.0,
+            11.5,
+        ),
+    ]
+
+
+def test_ledger_appends_rounds_and_plots(tmp_path):
+    every = append_ledger(tmp_path, _rows())
+    assert [r["step"] for r in every] == ["baseline", "+frame_compliance"]
+    second = [
+        LedgerRow("baseline", {}, 1, 9.0, 1.0, 1.0, 11.0, 11.5),
+        LedgerRow(
+            "+roughness_softening",
+            {"roughness_softening.compliance_mm3_per_n": 1e-4},
+            2,
+            8.0,
+            0.9,
+            1.0,
+            12.0,
+            13.0,
+        ),
+    ]
+    every = append_ledger(tmp_path, second)  # a second round: its baseline is not repeated
+    assert [r["step"] for r in every] == ["baseline", "+frame_compliance", "+roughness_softening"]
+    assert json.loads((tmp_path / "ledger.json").read_text()) == every
+    csv = (tmp_path / "ledger.csv").read_text().splitlines()
+    assert csv[0].startswith("step,params")
+    assert len(csv) == 4
+    png = plot_ledger(every, tmp_path / "ledger.png")
+    assert png.stat().st_size > 5000
+
+
+def test_calibrate_refuses_unknown_or_present_effects():
+    from cad.general import GeneralHingeParams
+    from validation.measurements import MeasurementSet
+    from validation.model_file import ModelSpec
+
+    spec = ModelSpec(
+        "general", GeneralHingeParams(), effects={"frame_compliance": {"compliance_mm_per_n": 1e-5}}
+    )
+    data = MeasurementSet((), Path("."))  # never read: the names are checked first
+    with pytest.raises(ParameterError, match="unknown effect 'nope'"):
+        calibrate(spec, data, ["nope"])
+    with pytest.raises(ParameterError, match="already in the model"):
+        calibrate(spec, data, ["frame_compliance"])

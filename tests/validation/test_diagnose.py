@@ -1,0 +1,145 @@
+"""validation.diagnose: verdict rules without FE (fast), and end to end on synthetic sets (slow)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from validation.diagnose import (
+    CandidateFit,
+    DiagnoseSettings,
+    MeasuredFeatures,
+    _verdict,
+    residual_pattern,
+)
+from validation.features import loop_features, noise_sigma
+from validation.loops import process_loop
+
+
+def _meas(n=4):
+    pts = tuple((0.0, a) for a in np.linspace(100.0, 400.0, n))
+    amps = np.array([p[1] for p in pts])
+    delta = 1e-5 * amps
+    W = 0.013 * math.pi * amps * delta
+    vals = np.column_stack([delta, W, 0.3 * delta])
+    return MeasuredFeatures(pts, vals, 0.02 * np.abs(vals))
+
+
+def _fit(name, c2, c0=400.0, counts=True, n=12):
+    return CandidateFit(
+        name,
+        "p",
+        1e-5,
+        "mm/N",
+        c2,
+        c0 - c2,
+        50.0,
+        1e-6 if counts else 0.5,
+        counts,
+        c0,
+        c2,
+        counts,
+        False,
+        c2 + 2,
+        c2 + math.log(n),
+        np.zeros((4, 3)),
+    )
+
+
+def test_verdict_rules():
+    m, s = _meas(), DiagnoseSettings()
+    assert _verdict([], 10.0, 12, 26.0, m, s)[0] == "no_missing_effect"
+    assert _verdict([], 400.0, 12, 26.0, m, s)[0] == "unexplained"
+    v = _verdict([_fit("a", 11.0), _fit("b", 200.0)], 400.0, 12, 26.0, m, s)
+    assert v[:2] == ("effect_missing", ("a",))
+    v = _verdict([_fit("a", 11.0), _fit("b", 12.0)], 400.0, 12, 26.0, m, s)
+    assert v[0] == "indistinguishable"
+    assert set(v[1]) == {"a", "b"}
+    assert v[3]
+    v = _verdict([_fit("a", 300.0)], 400.0, 12, 26.0, m, s)  # explains 26 % of the excess
+    assert v[0] == "unexplained"
+    assert "explains only" in v[2]
+
+
+def test_residual_pattern_words():
+    m = _meas()
+    stiff = m.values * np.array([0.8, 0.8, 0.8])  # δ 20 % low, η unchanged
+    assert any("too stiff at all amplitudes" in w for w in residual_pattern(stiff, m))
+    grow = m.values.copy()
+    grow[:, 1] *= 1.0 + np.linspace(0.0, 0.6, 4)  # η error 0 → +60 %
+    assert any("η error grows with amplitude" in w for w in residual_pattern(grow, m))
+    assert residual_pattern(m.values, m) == ["no systematic pattern beyond the noise"]
+
+
+def test_features_of_an_ellipse_and_noise_sigma():
+    rng = np.random.default_rng(0)
+    theta = np.linspace(0.0, 2 * math.pi, 400)[1:]
+    up = np.linspace(0.0, 1.0, 100)
+    F = np.concatenate([np.zeros(20), 300.0 * up, 300.0 * np.cos(theta)])
+    d = np.concatenate([np.zeros(20), 2e-3 * up, 2e-3 * np.cos(theta - 0.1)])
+    clean = loop_features(process_loop(F, d, "ellipse"))
+    assert clean[0] == pytest.approx(2e-3 * math.cos(0.1), rel=1e-3)
+    assert clean[1] == pytest.approx(math.pi * 300 * 2e-3 * math.sin(0.1), rel=2e-2)
+    noisy = process_loop(F + rng.normal(0, 0.2, F.size), d + rng.normal(0, 5e-6, F.size), "n")
+    s = noise_sigma(noisy)
+    assert np.all(s > 0)
+    assert s[0] < 1e-5
+    assert abs(loop_features(noisy)[1] - clean[1]) < 5 * s[1] + 0.02 * clean[1]
+
+
+# --------------------------------------------------------------------------- end to end
+
+DESIGN = ((0.0, (100.0, 400.0)), (0.1, (100.0, 400.0)))
+FAST = DiagnoseSettings(
+    grid_points=5, grid_decades=2.5, refine_iter=4, increments_per_stage=6, clearance_increments=12
+)
+
+
+@pytest.fixture(scope="module")
+def spec():
+    pytest.importorskip("gmsh")
+    from cad.general import GeneralHingeParams
+    from fe.cycle import CycleSettings
+    from mesh.settings import MeshSettings
+    from validation.model_file import ModelSpec
+
+    return ModelSpec(
+        "general",
+        GeneralHingeParams(),
+        MeshSettings(size_mm=4.0, contact_size_mm=2.0),
+        CycleSettings(mu=0.2, increments_per_stage=8, clearance_increments=16),
+    )
+
+
+def synth_set(spec, hidden, out, seed, design=DESIGN):
+    from validation.measurements import read_measurement_set
+    from validation.synth import SynthSettings, design_cases, synthesize
+
+    synthesize(spec, hidden, design_cases(design), SynthSettings(seed=seed), out)
+    return read_measurement_set(out)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2])
+def test_no_hidden_effect_gives_no_missing_effect(spec, tmp_path, seed):
+    from validation.diagnose import diagnose
+
+    d = diagnose(spec, synth_set(spec, {}, tmp_path, seed), FAST)
+    assert d.verdict == "no_missing_effect", d.text()
+
+
+@pytest.mark.slow
+def test_hidden_frame_compliance_is_named_first_and_calibration_cuts_the_error(spec, tmp_path):
+    from validation.calibrate import calibrate
+    from validation.diagnose import diagnose
+
+    data = synth_set(spec, {"frame_compliance": {"compliance_mm_per_n": 2e-5}}, tmp_path, 3)
+    d = diagnose(spec, data, FAST)
+    assert d.verdict == "effect_missing", d.text()
+    assert d.effects == ("frame_compliance",)
+    assert d.candidates[0].value == pytest.approx(2e-5, rel=0.15)
+    _, rows = calibrate(spec, data, ["frame_compliance"], FAST)
+    assert rows[0].error >= 5 * rows[-1].error
+    assert rows[-1].error < 2.0  # near the noise level (1 σ)

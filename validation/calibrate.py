@@ -1,0 +1,142 @@
+"""Add effects to a model, fit their parameters and keep an error ledger.
+
+``calibrate`` fits the named effects one after another (each by
+``validation.diagnose.fit_candidate`` on the model that already holds the ones before
+it), and returns the extended model and one ledger row per step: baseline → +effect → …
+with the parameters added, the error ``sqrt(χ²/N)`` (RMS feature residual in σ; ≈ 1 at
+the noise level), the held-out error, AIC = χ² + 2k and BIC = χ² + k ln N (k: effect
+parameters fitted so far). ``append_ledger`` adds rows to ``ledger.json``/``ledger.csv``
+in a folder and ``plot_ledger`` draws the error per step.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from cad.errors import ParameterError
+from validation.diagnose import DiagnoseSettings, chi2, fit_candidate, measured_features
+from validation.evaluate import ModelEvaluator
+from validation.measurements import MeasurementSet
+from validation.model_file import ModelSpec
+
+
+@dataclass(frozen=True)
+class LedgerRow:
+    """One step of the ledger.
+
+    Attributes:
+        step: Label (``baseline`` or ``+name``).
+        params: Effect parameters added in this step.
+        n_params: Effect parameters fitted so far.
+        chi2: χ² over the features.
+        error: sqrt(χ²/N).
+        heldout_error: sqrt(held-out χ² / N) (the step's parameter fitted without the fold).
+        aic: χ² + 2k.
+        bic: χ² + k ln N.
+    """
+
+    step: str
+    params: dict[str, float]
+    n_params: int
+    chi2: float
+    error: float
+    heldout_error: float
+    aic: float
+    bic: float
+
+
+def calibrate(
+    spec: ModelSpec,
+    data: MeasurementSet,
+    names: Sequence[str],
+    settings: DiagnoseSettings | None = None,
+) -> tuple[ModelSpec, list[LedgerRow]]:
+    """Fit the named effects in turn; return the extended model and the ledger rows.
+
+    Raises:
+        ParameterError: An unknown effect or one already in the model.
+    """
+    from fe.effects import REGISTRY
+
+    s = settings or DiagnoseSettings()
+    for n in names:
+        if n not in REGISTRY:
+            raise ParameterError(f"--effects: unknown effect {n!r}; known: {', '.join(REGISTRY)}")
+        if n in spec.effects:
+            raise ParameterError(f"--effects: {n!r} is already in the model")
+    meas = measured_features(data, s.features)
+    n_feat = meas.values.size
+    ev = ModelEvaluator(spec, meas.points, s.increments_per_stage, s.clearance_increments)
+    base = ev.features({})
+    c = chi2(base, meas)
+    err = math.sqrt(c / n_feat)
+    rows = [LedgerRow("baseline", {}, 0, c, err, err, c, c)]
+    for k, name in enumerate(names, start=1):
+        fit = fit_candidate(ev, name, meas, base, 1, s)
+        spec = dataclasses.replace(spec, effects={**spec.effects, name: {fit.param: fit.value}})
+        ev = ModelEvaluator(spec, meas.points, s.increments_per_stage, s.clearance_increments)
+        base = ev.features({})
+        c = chi2(base, meas)
+        held = max(fit.heldout_chi2, c)  # held-out never beats the in-sample fit
+        rows.append(
+            LedgerRow(
+                f"+{name}",
+                {f"{name}.{fit.param}": fit.value},
+                k,
+                c,
+                math.sqrt(c / n_feat),
+                math.sqrt(held / n_feat),
+                c + 2 * k,
+                c + k * math.log(n_feat),
+            )
+        )
+    return spec, rows
+
+
+def append_ledger(out: Path, rows: Sequence[LedgerRow]) -> list[dict[str, Any]]:
+    """Append rows to ``out/ledger.json`` and rewrite ``out/ledger.csv``; return all rows."""
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "ledger.json"
+    old: list[dict[str, Any]] = json.loads(path.read_text()) if path.is_file() else []
+    new = [dataclasses.asdict(r) for r in rows]
+    if old and new and new[0]["step"] == "baseline":
+        new = new[1:]  # the baseline of a later round is the last step of the previous one
+    every = old + new
+    path.write_text(json.dumps(every, indent=1, ensure_ascii=False) + "\n")
+    lines = ["step,params,n_params,chi2,error,heldout_error,aic,bic"]
+    for r in every:
+        p = ";".join(f"{k}={v:.6g}" for k, v in r["params"].items())
+        lines.append(
+            f"{r['step']},{p},{r['n_params']},{r['chi2']:.6g},{r['error']:.6g},"
+            f"{r['heldout_error']:.6g},{r['aic']:.6g},{r['bic']:.6g}"
+        )
+    (out / "ledger.csv").write_text("\n".join(lines) + "\n")
+    return every
+
+
+def plot_ledger(rows: Sequence[dict[str, Any]], path: Path) -> Path:
+    """Draw error and held-out error per step (log scale) with the noise level; return path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    x = range(len(rows))
+    ax.semilogy(x, [r["error"] for r in rows], "o-", label="error (fitted cases)")
+    ax.semilogy(x, [r["heldout_error"] for r in rows], "s--", label="held-out error")
+    ax.axhline(1.0, color="grey", ls=":", label="noise level")
+    ax.set_xticks(list(x), [r["step"] for r in rows], rotation=20)
+    ax.set_ylabel("RMS feature residual [σ]")
+    ax.set_title("calibration ledger")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,554 @@
+"""Diagnose which candidate effect is missing from a model, with a control of false alarms.
+
+Workflow (``diagnose``):
+
+1. **Features** (``validation.features``): each measured design point becomes three
+   numbers, δ_max, W_cycle and the opening at ½Fg, with σ from noise, model floor and replicates; the
+   residual is ``r = (model − measured)/σ``, N = 3 × design points. Features instead of
+   loop points sidestep the strong correlation of residuals along a loop.
+2. **Baseline**: χ²₀ of the model file as it is (μ is taken from the model file, i.e.
+   calibrated beforehand; it is not refitted here).
+3. **Per candidate** (every registry effect not already in the model, applicable to all
+   cases — ``interference`` needs Δr = 0): its one parameter is fitted on a log grid
+   (``grid_points`` values over ``grid_decades`` decades below its upper bound, features
+   interpolated linearly in the parameter between grid points, scanned densely), then
+   refined on the true model (bounded Brent in log10 p, ``refine_iter`` evaluations).
+   Every run reuses the clearance's factorisation (``validation.evaluate``).
+4. **False alarms**:
+
+   * *significance*: ``F = Δχ² / max(1, χ²_c/(N − 1))`` (σ that is too small, e.g. from
+     correlated noise, inflates χ²_c and so deflates F) against the F(1, N − 1)
+     quantile at ``alpha / m``, Bonferroni over the m candidates tried;
+   * *held-out*: the parameter is refitted with one fold of design points left out
+     (leave-one-clearance-out with ≥ 2 clearances, else leave-one-point-out), on the
+     grid interpolant, and the left-out χ² must fall by at least ``heldout_min_gain``;
+   * *bounds*: a parameter at the end of its grid is flagged (``at_bound``);
+   * AIC = χ² + 2k and BIC = χ² + k ln N are reported.
+
+5. **Verdict**: baseline consistent with noise (χ²₀ ≤ the χ²_N quantile ``1 − alpha``)
+   and no significant candidate → ``no_missing_effect``; the best significant candidate
+   explains at least ``explained_min`` of the excess χ²₀ − N → ``effect_missing`` (unless
+   another one fits equally well, Δχ² below the 1-dof quantile ``1 − alpha`` scaled as
+   above → ``indistinguishable``, with the design point where the two fitted models differ
+   most); otherwise ``unexplained``, with the residual pattern in words.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from scipy import optimize, stats
+
+from validation.evaluate import ModelEvaluator
+from validation.features import FEATURES, FeatureSettings, derived, feature_sigma, loop_features
+from validation.loops import process_loop
+from validation.measurements import MeasurementSet
+from validation.model_file import ModelSpec
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class DiagnoseSettings:
+    """Fitting and decision settings (module docstring).
+
+    Attributes:
+        features: Model floor of the feature σ.
+        alpha: False-alarm probability of the whole diagnosis.
+        grid_points: Grid values per candidate parameter.
+        grid_decades: Decades the grid spans below the parameter's upper bound.
+        refine_iter: True-model evaluations of the refinement.
+        heldout_min_gain: Fraction the held-out χ² must fall by.
+        explained_min: Fraction of the excess χ² the best candidate must explain.
+        increments_per_stage: Increments per stage of the diagnosis runs (None: model file's).
+        clearance_increments: Increments across the free play (None: model file's).
+    """
+
+    features: FeatureSettings = field(default_factory=FeatureSettings)
+    alpha: float = 0.01
+    grid_points: int = 7
+    grid_decades: float = 3.0
+    refine_iter: int = 6
+    heldout_min_gain: float = 0.25
+    explained_min: float = 0.7
+    increments_per_stage: int | None = 8
+    clearance_increments: int | None = 16
+
+
+@dataclass(frozen=True)
+class MeasuredFeatures:
+    """Measured features per design point.
+
+    Attributes:
+        points: (clearance [mm], amplitude [N]) per row.
+        values: Features, shape (n_points, 3).
+        sigma: Their σ, shape (n_points, 3).
+    """
+
+    points: tuple[tuple[float, float], ...]
+    values: FloatArray
+    sigma: FloatArray
+
+    @property
+    def amplitudes(self) -> FloatArray:
+        """Amplitude of each row, shape (n_points,) [N]."""
+        return np.array([p[1] for p in self.points])
+
+
+def measured_features(data: MeasurementSet, settings: FeatureSettings) -> MeasuredFeatures:
+    """Summarise every design point of a measurement set (replicates averaged)."""
+    points, values, sigmas = [], [], []
+    for (_, clearance, _, amp), ids in data.replicate_groups().items():
+        loops = []
+        for cid in ids:
+            loop = data.by_id()[cid].loop
+            if loop is not None:
+                loops.append(process_loop(loop.force_n, loop.displacement_mm, loop.source))
+        if not loops:
+            continue
+        feats = np.array([loop_features(p) for p in loops])
+        rep = np.std(feats, axis=0, ddof=1) if len(loops) > 1 else None
+        points.append((clearance, amp))
+        values.append(feats.mean(axis=0))
+        sigmas.append(feature_sigma(loops, settings, rep))
+    return MeasuredFeatures(tuple(points), np.array(values), np.array(sigmas))
+
+
+def residuals(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:
+    """Return (model − measured)/σ, shape (n_points, 3); a failed run (NaN) counts 1e3."""
+    r = (np.asarray(model) - meas.values) / meas.sigma
+    return np.where(np.isfinite(r), r, 1e3)
+
+
+def chi2(
+    model: FloatArray, meas: MeasuredFeatures, rows: npt.NDArray[np.bool_] | None = None
+) -> float:
+    """Return Σ r² over the rows selected (all by default)."""
+    r = residuals(model, meas)
+    return float(np.sum(r[rows] ** 2) if rows is not None else np.sum(r**2))
+
+
+@dataclass(frozen=True)
+class CandidateFit:
+    """One candidate effect fitted to the data.
+
+    Attributes:
+        name: Effect name.
+        param: Its parameter name.
+        value: Fitted value.
+        unit: Its unit.
+        chi2: χ² with the effect.
+        delta_chi2: χ²₀ − χ².
+        f_stat: The inflation-robust F statistic.
+        p_value: Its p-value (before the Bonferroni factor).
+        significant: F beyond the Bonferroni-corrected quantile.
+        heldout_chi2_base: Held-out χ² of the baseline, summed over folds.
+        heldout_chi2: Held-out χ² with the effect fitted on the other folds.
+        heldout_ok: Held-out χ² fell by at least ``heldout_min_gain``.
+        at_bound: The fit sits at an end of the grid (or at 0: the effect switched off).
+        aic: χ² + 2k.
+        bic: χ² + k ln N.
+        features: Model features at the fit, shape (n_points, 3).
+    """
+
+    name: str
+    param: str
+    value: float
+    unit: str
+    chi2: float
+    delta_chi2: float
+    f_stat: float
+    p_value: float
+    significant: bool
+    heldout_chi2_base: float
+    heldout_chi2: float
+    heldout_ok: bool
+    at_bound: bool
+    aic: float
+    bic: float
+    features: FloatArray = field(repr=False, compare=False)
+
+    @property
+    def counts(self) -> bool:
+        """Significant and confirmed on held-out data."""
+        return self.significant and self.heldout_ok
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return a JSON-ready dict (no arrays)."""
+        return {k: v for k, v in vars(self).items() if k != "features"} | {"counts": self.counts}
+
+
+def _grid(hi: float, settings: DiagnoseSettings) -> FloatArray:
+    return hi * 10.0 ** np.linspace(-settings.grid_decades, 0.0, settings.grid_points)
+
+
+def _interp_features(grid: FloatArray, feats: FloatArray, p: float) -> FloatArray:
+    """Linear interpolation in p of features on the grid, shape (n_points, 3)."""
+    j = int(np.clip(np.searchsorted(grid, p) - 1, 0, len(grid) - 2))
+    t = (p - grid[j]) / (grid[j + 1] - grid[j])
+    return (1 - t) * feats[j] + t * feats[j + 1]
+
+
+def _scan(
+    grid: FloatArray,
+    feats: FloatArray,
+    base: FloatArray,
+    meas: MeasuredFeatures,
+    rows: npt.NDArray[np.bool_],
+) -> tuple[float, FloatArray]:
+    """Return (parameter, features) minimising χ² over ``rows`` on the interpolant.
+
+    A dense log scan between the grid's ends; the effect switched off (p = 0, the
+    baseline ``base``) competes too.
+    """
+    finite = np.all(np.isfinite(feats.reshape(len(grid), -1)), axis=1)
+    g, f = grid[finite], feats[finite]
+    best = (chi2(base, meas, rows), 0.0, base)
+    if len(g) < 2:
+        return best[1], best[2]
+    for p in 10.0 ** np.linspace(math.log10(g[0]), math.log10(g[-1]), 301):
+        fp = _interp_features(g, f, float(p))
+        c = chi2(fp, meas, rows)
+        if c < best[0]:
+            best = (c, float(p), fp)
+    return best[1], best[2]
+
+
+def _folds(points: Sequence[tuple[float, float]]) -> list[npt.NDArray[np.bool_]]:
+    """Held-out masks: one per clearance if ≥ 2 clearances, else one per design point."""
+    clearances = sorted({p[0] for p in points})
+    if len(clearances) >= 2:
+        return [np.array([p[0] == c for p in points]) for c in clearances]
+    return [np.arange(len(points)) == i for i in range(len(points))]
+
+
+def fit_candidate(
+    evaluator: ModelEvaluator,
+    name: str,
+    meas: MeasuredFeatures,
+    base_features: FloatArray,
+    n_tried: int,
+    settings: DiagnoseSettings,
+) -> CandidateFit:
+    """Fit one candidate's parameter and judge it (module docstring, steps 3–4)."""
+    from fe.effects import REGISTRY
+
+    spec = REGISTRY[name].params[0]
+    grid = _grid(spec.hi, settings)
+    feats = np.array([evaluator.features({name: {spec.name: float(p)}}) for p in grid])
+    rows = np.ones(len(meas.points), dtype=bool)
+    p0, _ = _scan(grid, feats, base_features, meas, rows)
+    c0 = chi2(base_features, meas)
+    if p0 == 0.0:
+        p0 = float(grid[0])
+
+    def cost(u: float) -> float:
+        return chi2(evaluator.features({name: {spec.name: float(10.0**u)}}), meas)
+
+    u0 = math.log10(p0)
+    lo, hi = math.log10(grid[0]), math.log10(grid[-1])
+    res = optimize.minimize_scalar(
+        cost,
+        bounds=(max(lo, u0 - 0.25), min(hi, u0 + 0.25)),
+        method="bounded",
+        options={"maxiter": settings.refine_iter, "xatol": 0.01},
+    )
+    candidates = [(c0, 0.0), (float(res.fun), float(10.0**res.x))] + [
+        (chi2(feats[j], meas), float(grid[j])) for j in range(len(grid))
+    ]
+    c2, value = min(candidates)
+    fitted = evaluator.features({name: {spec.name: value}}) if value > 0 else base_features
+    n = meas.values.size
+    d = c0 - c2
+    f_stat = d / max(1.0, c2 / max(n - 1, 1))
+    p_value = float(stats.f.sf(f_stat, 1, max(n - 1, 1)))
+    significant = p_value < settings.alpha / max(n_tried, 1)
+    held_base = held = 0.0
+    for test in _folds(meas.points):
+        train = ~test
+        _, f_fold = _scan(grid, feats, base_features, meas, train)
+        held_base += chi2(base_features, meas, test)
+        held += chi2(f_fold, meas, test)
+    at_bound = value <= grid[0] * 1.0001 or value >= grid[-1] * 0.9999
+    return CandidateFit(
+        name=name,
+        param=spec.name,
+        value=value,
+        unit=spec.unit,
+        chi2=c2,
+        delta_chi2=d,
+        f_stat=f_stat,
+        p_value=p_value,
+        significant=bool(significant),
+        heldout_chi2_base=held_base,
+        heldout_chi2=held,
+        heldout_ok=bool(held <= (1.0 - settings.heldout_min_gain) * held_base),
+        at_bound=bool(at_bound),
+        aic=c2 + 2.0,
+        bic=c2 + math.log(n),
+        features=fitted,
+    )
+
+
+def residual_pattern(model: FloatArray, meas: MeasuredFeatures) -> list[str]:
+    """Describe the baseline's misfit in words (stiffness, η level and trends).
+
+    Rules, per quantity q ∈ {δ_max, η} with relative error e = (model − measured)/measured
+    and its σ from the features: "at all amplitudes" when every design point's error has
+    the same sign beyond 2σ; "grows with amplitude" when, within a clearance, |e| at the
+    largest amplitude exceeds |e| at the smallest by more than 2σ; likewise for clearance.
+    """
+    amps = meas.amplitudes
+    clear = np.array([p[0] for p in meas.points])
+    dm, em = derived(model, amps)
+    dd, ed = derived(meas.values, amps)
+    s_delta = meas.sigma[:, 0] / np.abs(dd)
+    s_eta = meas.sigma[:, 1] / np.abs(meas.values[:, 1])
+    words = []
+    for label, e, s, hi_word, lo_word in (
+        ("δ", dm / dd - 1.0, s_delta, "too soft", "too stiff"),
+        ("η", np.where(np.isfinite(em), em / ed - 1.0, np.nan), s_eta, "η too high", "η too low"),
+    ):
+        if not np.all(np.isfinite(e)):
+            continue
+        if np.all(e > 2 * s):
+            words.append(
+                f"{hi_word} at all amplitudes ({label} error {np.min(e):+.0%} … {np.max(e):+.0%})"
+            )
+        elif np.all(e < -2 * s):
+            words.append(
+                f"{lo_word} at all amplitudes ({label} error {np.max(e):+.0%} … {np.min(e):+.0%})"
+            )
+        for c in sorted(set(clear)):
+            sel = np.flatnonzero(clear == c)
+            if len(sel) < 2:
+                continue
+            i_lo, i_hi = sel[np.argmin(amps[sel])], sel[np.argmax(amps[sel])]
+            grow = abs(e[i_hi]) - abs(e[i_lo])
+            if abs(grow) > 2 * math.hypot(s[i_hi], s[i_lo]):
+                trend = "grows" if grow > 0 else "shrinks"
+                words.append(
+                    f"{label} error {trend} with amplitude at Δr = {c:g} mm "
+                    f"({e[i_lo]:+.0%} at {amps[i_lo]:g} N → {e[i_hi]:+.0%} at {amps[i_hi]:g} N)"
+                )
+        if len(set(clear)) >= 2:
+            by_c = {c: float(np.mean(np.abs(e[clear == c]))) for c in sorted(set(clear))}
+            cs = list(by_c)
+            if abs(by_c[cs[-1]] - by_c[cs[0]]) > 2 * float(np.mean(s)):
+                trend = "grows" if by_c[cs[-1]] > by_c[cs[0]] else "shrinks"
+                words.append(f"{label} error {trend} with clearance")
+    return words or ["no systematic pattern beyond the noise"]
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """What ``diagnose`` found.
+
+    Attributes:
+        verdict: ``effect_missing``, ``no_missing_effect``, ``indistinguishable`` or
+            ``unexplained``.
+        effects: The effect(s) the verdict names (none for the others).
+        message: The verdict in words.
+        pattern: The baseline's residual pattern in words.
+        n_features: N.
+        chi2_base: χ²₀.
+        chi2_noise_limit: The χ²_N quantile 1 − alpha.
+        candidates: Fitted candidates, best (lowest χ²) first.
+        skipped: Candidate → why it was not tried.
+        separating_test: For ``indistinguishable``: where the two fitted models differ most.
+        stats: Cycles run, times.
+    """
+
+    verdict: str
+    effects: tuple[str, ...]
+    message: str
+    pattern: tuple[str, ...]
+    n_features: int
+    chi2_base: float
+    chi2_noise_limit: float
+    candidates: tuple[CandidateFit, ...]
+    skipped: Mapping[str, str]
+    separating_test: str | None
+    stats: Mapping[str, float]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return a JSON-ready dict."""
+        return {
+            "verdict": self.verdict,
+            "effects": list(self.effects),
+            "message": self.message,
+            "pattern": list(self.pattern),
+            "features": list(FEATURES),
+            "n_features": self.n_features,
+            "chi2_base": self.chi2_base,
+            "chi2_noise_limit": self.chi2_noise_limit,
+            "candidates": [c.to_dict() for c in self.candidates],
+            "skipped": dict(self.skipped),
+            "separating_test": self.separating_test,
+            "stats": dict(self.stats),
+        }
+
+    def text(self) -> str:
+        """Return the diagnosis as a short report."""
+        lines = [
+            f"verdict: {self.verdict} — {self.message}",
+            "residual pattern of the model as it is:",
+        ]
+        lines += [f"  - {w}" for w in self.pattern]
+        lines.append(
+            f"χ² baseline {self.chi2_base:.1f} over N = {self.n_features} features "
+            f"(noise limit {self.chi2_noise_limit:.1f})"
+        )
+        lines.append("candidates (best first):")
+        for c in self.candidates:
+            flags = ", ".join(
+                f
+                for f, on in (
+                    ("significant", c.significant),
+                    ("held-out ok", c.heldout_ok),
+                    ("AT BOUND", c.at_bound),
+                )
+                if on
+            )
+            lines.append(
+                f"  {c.name:<22} {c.param} = {c.value:.3g} {c.unit}: χ² {c.chi2:.1f} "
+                f"(Δχ² {c.delta_chi2:.1f}, p {c.p_value:.2g}; held-out {c.heldout_chi2_base:.1f} → "
+                f"{c.heldout_chi2:.1f}; BIC {c.bic:.1f}) {flags}"
+            )
+        for n, why in self.skipped.items():
+            lines.append(f"  {n:<22} not tried: {why}")
+        if self.separating_test:
+            lines.append(f"to separate them: {self.separating_test}")
+        return "\n".join(lines)
+
+
+def _separating_test(a: CandidateFit, b: CandidateFit, meas: MeasuredFeatures) -> str:
+    """Name the design point and feature where two fitted models differ most (in σ)."""
+    diff = np.abs(a.features - b.features) / meas.sigma
+    i, k = np.unravel_index(int(np.nanargmax(diff)), diff.shape)
+    c, amp = meas.points[i]
+    return (
+        f"they differ most in {FEATURES[k]} at Δr = {c:g} mm, Fg = {amp:g} N "
+        f"({diff[i, k]:.1f} σ); repeat that test (replicates shrink σ) or add cases beyond "
+        "the measured amplitudes and clearances there"
+    )
+
+
+def _verdict(
+    fits: list[CandidateFit],
+    c0: float,
+    n: int,
+    limit: float,
+    meas: MeasuredFeatures,
+    s: DiagnoseSettings,
+) -> tuple[str, tuple[str, ...], str, str | None]:
+    good = [f for f in fits if f.counts]
+    if not good:
+        if c0 <= limit:
+            return (
+                "no_missing_effect",
+                (),
+                "the model is consistent with the data within the noise",
+                None,
+            )
+        return (
+            "unexplained",
+            (),
+            f"a real residual (χ² {c0:.0f} > {limit:.0f}) that no candidate reduces significantly",
+            None,
+        )
+    best = good[0]
+    explained = (c0 - best.chi2) / max(c0 - n, 1e-12)
+    if best.chi2 > limit and explained < s.explained_min:
+        return (
+            "unexplained",
+            (),
+            f"the best candidate, {best.name}, explains only {explained:.0%} of the excess χ²; "
+            f"χ² {best.chi2:.0f} stays above the noise limit {limit:.0f}",
+            None,
+        )
+    inflate = max(1.0, best.chi2 / max(n - 1, 1))
+    tie = float(stats.chi2.ppf(1.0 - s.alpha, 1)) * inflate
+    rivals = [f for f in good[1:] if f.chi2 - best.chi2 < tie]
+    if rivals:
+        names = (best.name, *(r.name for r in rivals))
+        return (
+            "indistinguishable",
+            names,
+            f"{' and '.join(names)} fit equally well (Δχ² {rivals[0].chi2 - best.chi2:.1f} < {tie:.1f})",
+            _separating_test(best, rivals[0], meas),
+        )
+    rest = "" if best.chi2 <= limit else "; a residual remains: diagnose again after adding it"
+    return (
+        "effect_missing",
+        (best.name,),
+        f"{best.name} is missing ({best.param} ≈ {best.value:.3g} {best.unit}; χ² {c0:.0f} → "
+        f"{best.chi2:.0f}, noise limit {limit:.0f}){rest}",
+        None,
+    )
+
+
+def diagnose(
+    spec: ModelSpec,
+    data: MeasurementSet,
+    settings: DiagnoseSettings | None = None,
+    evaluator: ModelEvaluator | None = None,
+) -> Diagnosis:
+    """Rank the registry's candidate effects and give a verdict (module docstring).
+
+    Args:
+        spec: The model as it is (its own effects stay on).
+        data: The measurements.
+        settings: Decision settings; defaults to ``DiagnoseSettings()``.
+        evaluator: A ``ModelEvaluator`` to reuse (its cache), or None.
+    """
+    import time
+
+    from fe.effects import REGISTRY
+
+    s = settings or DiagnoseSettings()
+    t0 = time.perf_counter()
+    meas = measured_features(data, s.features)
+    ev = evaluator or ModelEvaluator(
+        spec, meas.points, s.increments_per_stage, s.clearance_increments
+    )
+    base = ev.features({})
+    c0 = chi2(base, meas)
+    n = meas.values.size
+    limit = float(stats.chi2.ppf(1.0 - s.alpha, n))
+    skipped: dict[str, str] = {}
+    names = []
+    for name in REGISTRY:
+        if name in spec.effects:
+            skipped[name] = "already in the model"
+        elif name == "interference" and any(p[0] > 0 for p in meas.points):
+            skipped[name] = "needs Δr = 0 at every case (an interference is a negative clearance)"
+        else:
+            names.append(name)
+    fits = sorted(
+        (fit_candidate(ev, name, meas, base, len(names), s) for name in names), key=lambda f: f.chi2
+    )
+    verdict, effects, message, sep = _verdict(fits, c0, n, limit, meas, s)
+    return Diagnosis(
+        verdict=verdict,
+        effects=effects,
+        message=message,
+        pattern=tuple(residual_pattern(base, meas)),
+        n_features=n,
+        chi2_base=c0,
+        chi2_noise_limit=limit,
+        candidates=tuple(fits),
+        skipped=skipped,
+        separating_test=sep,
+        stats={
+            "n_cycles": ev.n_cycles,
+            "cycle_s": ev.cycle_s,
+            "setup_s": ev.setup_s,
+            "wall_s": time.perf_counter() - t0,
+        },
+    )
