@@ -299,7 +299,8 @@ def residual_pattern(model: FloatArray, meas: MeasuredFeatures) -> list[str]:
     """Describe the baseline's misfit in words (stiffness, η level and trends).
 
     Rules, per quantity q ∈ {δ_max, η} with relative error e = (model − measured)/measured
-    and its σ from the features: "at all amplitudes" when every design point's error has
+    (for δ_max relative to its elastic part, the free play 2Δr taken off) and its σ from
+    the features: "at all amplitudes" when every design point's error has
     the same sign beyond 2σ; "grows with amplitude" when, within a clearance, |e| at the
     largest amplitude exceeds |e| at the smallest by more than 2σ; likewise for clearance.
     """
@@ -307,11 +308,12 @@ def residual_pattern(model: FloatArray, meas: MeasuredFeatures) -> list[str]:
     clear = np.array([p[0] for p in meas.points])
     dm, em = derived(model, amps)
     dd, ed = derived(meas.values, amps)
-    s_delta = meas.sigma[:, 0] / np.abs(dd)
+    elastic = np.maximum(np.abs(dd - 2.0 * clear), 1e-12)  # δ_max without the free play 2Δr
+    s_delta = meas.sigma[:, 0] / elastic
     s_eta = meas.sigma[:, 1] / np.abs(meas.values[:, 1])
     words = []
     for label, e, s, hi_word, lo_word in (
-        ("δ", dm / dd - 1.0, s_delta, "too soft", "too stiff"),
+        ("δ", (dm - dd) / elastic, s_delta, "too soft", "too stiff"),
         ("η", np.where(np.isfinite(em), em / ed - 1.0, np.nan), s_eta, "η too high", "η too low"),
     ):
         if not np.all(np.isfinite(e)):

@@ -143,3 +143,59 @@ def test_hidden_frame_compliance_is_named_first_and_calibration_cuts_the_error(s
     _, rows = calibrate(spec, data, ["frame_compliance"], FAST)
     assert rows[0].error >= 5 * rows[-1].error
     assert rows[-1].error < 2.0  # near the noise level (1 σ)
+
+
+@pytest.mark.slow
+def test_hidden_roughness_softening_is_named_first(spec, tmp_path):
+    from validation.diagnose import diagnose
+
+    data = synth_set(spec, {"roughness_softening": {"compliance_mm3_per_n": 2e-4}}, tmp_path, 4)
+    d = diagnose(spec, data, FAST)
+    assert d.verdict == "effect_missing", d.text()
+    assert d.effects == ("roughness_softening",)
+
+
+@pytest.mark.slow
+def test_hidden_interference_is_named_first(spec, tmp_path):
+    from validation.diagnose import diagnose
+
+    design = ((0.0, (100.0, 250.0, 400.0)),)  # an interference is refused with clearance
+    data = synth_set(spec, {"interference": {"interference_mm": 1e-3}}, tmp_path, 5, design)
+    d = diagnose(spec, data, FAST)
+    assert d.verdict == "effect_missing", d.text()
+    assert d.effects == ("interference",)
+
+
+def play_operator(force_n, slip_n):
+    """Return the play (backlash) operator of a force history: x moves only when |F − x| > slip."""
+    out = np.zeros_like(force_n)
+    x = 0.0
+    for i, f in enumerate(force_n):
+        x = min(max(x, f - slip_n), f + slip_n)
+        out[i] = x
+    return out
+
+
+@pytest.mark.slow
+def test_effect_outside_the_registry_is_unexplained(spec, tmp_path):
+    """A spring–slider (Jenkins) element in series, added to the data only: extra hysteresis
+    that no registry effect makes (W grows with δ in a non-homogeneous way)."""
+    from validation.diagnose import diagnose
+    from validation.measurements import read_measurement_set
+
+    design = ((0.0, (100.0, 250.0, 400.0)),)
+    synth_set(spec, {}, tmp_path, 6, design)
+    for path in (tmp_path / "loops").glob("*.csv"):
+        t, F, d = np.loadtxt(path, delimiter=",", skiprows=1).T
+        d = d + play_operator(F, 30.0) / 2e5  # slip 30 N, spring 2e5 N/mm
+        np.savetxt(
+            path,
+            np.column_stack([t, F, d]),
+            delimiter=",",
+            header="time_s,force_N,displacement_mm",
+            comments="",
+            fmt="%.9g",
+        )
+    d = diagnose(spec, read_measurement_set(tmp_path), FAST)
+    assert d.verdict == "unexplained", d.text()
+    assert d.effects == ()
