@@ -199,3 +199,24 @@ def test_effect_outside_the_registry_is_unexplained(spec, tmp_path):
     d = diagnose(spec, read_measurement_set(tmp_path), FAST)
     assert d.verdict == "unexplained", d.text()
     assert d.effects == ()
+
+
+@pytest.mark.slow
+def test_two_hidden_effects_are_found_in_two_rounds(spec, tmp_path):
+    from validation.calibrate import calibrate
+    from validation.diagnose import diagnose
+
+    hidden = {
+        "frame_compliance": {"compliance_mm_per_n": 2e-5},
+        "roughness_softening": {"compliance_mm3_per_n": 2e-4},
+    }
+    data = synth_set(spec, hidden, tmp_path, 8)
+    first = diagnose(spec, data, FAST)
+    assert first.verdict == "effect_missing", first.text()
+    assert first.effects[0] in hidden
+    spec2, rows = calibrate(spec, data, list(first.effects), FAST)
+    second = diagnose(spec2, data, FAST)
+    assert second.verdict == "effect_missing", second.text()
+    assert set(first.effects + second.effects) == set(hidden)
+    _, rows3 = calibrate(spec2, data, list(second.effects), FAST)
+    assert rows[0].error >= 5 * rows3[-1].error
