@@ -20,8 +20,8 @@ Workflow (``diagnose``):
      correlated noise, inflates χ²_c and so deflates F) against the F(1, N − 1)
      quantile at ``alpha / m``, Bonferroni over the m candidates tried;
    * *held-out*: the parameter is refitted with one fold of design points left out
-     (leave-one-clearance-out with ≥ 2 clearances, else leave-one-point-out), on the
-     grid interpolant, and the left-out χ² must fall by at least ``heldout_min_gain``;
+     (the k-th amplitude of every clearance, or one clearance when each has a single
+     amplitude), on the grid interpolant, and the left-out χ² must fall by at least ``heldout_min_gain``;
    * *bounds*: a parameter at the end of its grid is flagged (``at_bound``);
    * AIC = χ² + 2k and BIC = χ² + k ln N are reported.
 
@@ -75,7 +75,7 @@ class DiagnoseSettings:
     grid_decades: float = 3.0
     refine_iter: int = 6
     heldout_min_gain: float = 0.25
-    explained_min: float = 0.7
+    explained_min: float = 0.9
     increments_per_stage: int | None = 8
     clearance_increments: int | None = 16
 
@@ -220,11 +220,22 @@ def _scan(
 
 
 def _folds(points: Sequence[tuple[float, float]]) -> list[npt.NDArray[np.bool_]]:
-    """Held-out masks: one per clearance if ≥ 2 clearances, else one per design point."""
+    """Held-out masks: leave-one-amplitude-rank-out, else leave-one-clearance-out.
+
+    Fold k holds the k-th smallest amplitude of every clearance, so every training set
+    still spans all clearances (leaving a whole clearance out fails to confirm an effect
+    that only one clearance resolves, e.g. a tangential compliance at Δr = 0). With one
+    amplitude per clearance, one fold per clearance.
+    """
+    rank = []
+    for c, a in points:
+        amps = sorted({p[1] for p in points if p[0] == c})
+        rank.append(amps.index(a))
+    ranks = np.array(rank)
+    if len(set(rank)) >= 2:
+        return [ranks == k for k in sorted(set(rank))]
     clearances = sorted({p[0] for p in points})
-    if len(clearances) >= 2:
-        return [np.array([p[0] == c for p in points]) for c in clearances]
-    return [np.arange(len(points)) == i for i in range(len(points))]
+    return [np.array([p[0] == c for p in points]) for c in clearances]
 
 
 def fit_candidate(

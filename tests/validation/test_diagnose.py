@@ -220,3 +220,13 @@ def test_two_hidden_effects_are_found_in_two_rounds(spec, tmp_path):
     assert set(first.effects + second.effects) == set(hidden)
     _, rows3 = calibrate(spec2, data, list(second.effects), FAST)
     assert rows[0].error >= 5 * rows3[-1].error
+
+
+def test_held_out_folds_keep_every_clearance_in_training():
+    from validation.diagnose import _folds
+
+    pts = [(0.0, 100.0), (0.0, 400.0), (0.1, 100.0), (0.1, 400.0)]
+    folds = _folds(pts)
+    assert [f.tolist() for f in folds] == [[True, False, True, False], [False, True, False, True]]
+    single = _folds([(0.0, 100.0), (0.1, 100.0)])  # one amplitude each: leave a clearance out
+    assert [f.tolist() for f in single] == [[True, False], [False, True]]
