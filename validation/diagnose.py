@@ -191,7 +191,7 @@ def _interp_features(grid: FloatArray, feats: FloatArray, p: float) -> FloatArra
     """Linear interpolation in p of features on the grid, shape (n_points, 3)."""
     j = int(np.clip(np.searchsorted(grid, p) - 1, 0, len(grid) - 2))
     t = (p - grid[j]) / (grid[j + 1] - grid[j])
-    return (1 - t) * feats[j] + t * feats[j + 1]
+    return np.asarray((1 - t) * feats[j] + t * feats[j + 1], dtype=np.float64)
 
 
 def _scan(

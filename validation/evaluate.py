@@ -76,16 +76,18 @@ class ModelEvaluator:
 
     def _system(self, clearance: float) -> tuple[Any, Any]:
         if clearance not in self._systems:
-            from cad.general import make_general_hinge
+            from cad.errors import ParameterError
+            from cad.general import GeneralHingeParams, make_general_hinge
             from fe.cycle import configurations
             from fe.hinge_system import build_system
             from mesh.build import mesh_hinge
             from validation.model_file import with_clearance
 
             t0 = time.perf_counter()
-            mesh, _ = mesh_hinge(
-                make_general_hinge(with_clearance(self.spec, clearance)), self.spec.mesh
-            )
+            hinge = with_clearance(self.spec, clearance)
+            if not isinstance(hinge, GeneralHingeParams):
+                raise ParameterError(f"diagnose needs a general hinge, got {type(hinge).__name__}")
+            mesh, _ = mesh_hinge(make_general_hinge(hinge), self.spec.mesh)
             system = build_system(mesh)
             self._systems[clearance] = (system, configurations(system, clearance))
             self.setup_s += time.perf_counter() - t0

@@ -115,7 +115,7 @@ def feature_sigma(
         ]
     )
     rep = np.zeros(3) if replicate_std is None else np.asarray(replicate_std, dtype=np.float64)
-    return np.sqrt(noise**2 + floor**2 + rep**2)
+    return np.asarray(np.sqrt(noise**2 + floor**2 + rep**2), dtype=np.float64)
 
 
 def derived(features: FloatArray, amplitude_n: FloatArray) -> tuple[FloatArray, FloatArray]:
