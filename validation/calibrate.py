@@ -79,7 +79,8 @@ def calibrate(
     rows = [LedgerRow("baseline", {}, 0, c, err, err, c, c)]
     for k, name in enumerate(names, start=1):
         fit = fit_candidate(ev, name, meas, base, 1, s)
-        spec = dataclasses.replace(spec, effects={**spec.effects, name: {fit.param: fit.value}})
+        # the model's own post-only effects come back re-tuned with the new one
+        spec = dataclasses.replace(spec, effects={**spec.effects, **fit.model_effects})
         ev = ModelEvaluator(spec, meas.points, s.increments_per_stage, s.clearance_increments)
         base = ev.features({})
         c = chi2(base, meas)

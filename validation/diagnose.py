@@ -9,7 +9,8 @@ Workflow (``diagnose``):
 2. **Baseline**: χ²₀ of the model file as it is (μ is taken from the model file, i.e.
    calibrated beforehand; it is not refitted here).
 3. **Per candidate** (every registry effect not already in the model, applicable to all
-   cases — ``interference`` needs Δr = 0): its one parameter is fitted on a log grid
+   cases — ``interference`` needs Δr = 0): the model's own post-only effects (no cycle
+   needed) are re-tuned with it (``_retuned_features``), and its one parameter is fitted on a log grid
    (``grid_points`` values over ``grid_decades`` decades below its upper bound, features
    interpolated linearly in the parameter between grid points, scanned densely), then
    refined on the true model (bounded Brent in log10 p, ``refine_iter`` evaluations).
@@ -154,6 +155,8 @@ class CandidateFit:
         aic: χ² + 2k.
         bic: χ² + k ln N.
         features: Model features at the fit, shape (n_points, 3).
+        model_effects: The effects of that fit: the candidate and the model's own
+            post-only effects as re-tuned with it.
     """
 
     name: str
@@ -172,6 +175,7 @@ class CandidateFit:
     aic: float
     bic: float
     features: FloatArray = field(repr=False, compare=False)
+    model_effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
 
     @property
     def counts(self) -> bool:
@@ -180,7 +184,11 @@ class CandidateFit:
 
     def to_dict(self) -> dict[str, Any]:
         """Return a JSON-ready dict (no arrays)."""
-        return {k: v for k, v in vars(self).items() if k != "features"} | {"counts": self.counts}
+        out = {k: v for k, v in vars(self).items() if k not in ("features", "model_effects")}
+        return out | {
+            "counts": self.counts,
+            "model_effects": {k: dict(v) for k, v in self.model_effects.items()},
+        }
 
 
 def _grid(hi: float, settings: DiagnoseSettings) -> FloatArray:
@@ -238,6 +246,42 @@ def _folds(points: Sequence[tuple[float, float]]) -> list[npt.NDArray[np.bool_]]
     return [np.array([p[0] == c for p in points]) for c in clearances]
 
 
+def _retuned_features(
+    evaluator: ModelEvaluator, effects: Mapping[str, Mapping[str, float]], meas: MeasuredFeatures
+) -> FloatArray:
+    """Features with ``effects``, the model's own post-only effects re-tuned (``_retuned``)."""
+    return evaluator.features(_retuned(evaluator, effects, meas))
+
+
+def _retuned(
+    evaluator: ModelEvaluator, effects: Mapping[str, Mapping[str, float]], meas: MeasuredFeatures
+) -> dict[str, dict[str, float]]:
+    """Return ``effects`` plus the model's own post-only effects re-tuned to the data.
+
+    A post-only effect already in the model (e.g. a fitted ``frame_compliance``) costs no
+    cycle, so its parameter is refitted (bounded Brent) with every candidate value: an
+    effect fitted alone in an earlier round has absorbed part of the next one, and a
+    candidate judged against that frozen value would look weaker than it is.
+    """
+    from fe.effects import REGISTRY
+    from validation.evaluate import is_post_only
+
+    own = {n: dict(p) for n, p in evaluator.spec.effects.items() if is_post_only(n)}
+    extra = {n: dict(p) for n, p in effects.items()}
+    for n in own:
+        for par in REGISTRY[n].params:
+
+            def cost(v: float, n: str = n, k: str = par.name) -> float:
+                trial = {**own, **extra, n: {**own[n], k: float(v)}}
+                return chi2(evaluator.features(trial), meas)
+
+            res = optimize.minimize_scalar(
+                cost, bounds=(par.lo, par.hi), method="bounded", options={"xatol": par.hi * 1e-4}
+            )
+            own[n][par.name] = float(res.x)
+    return {**own, **extra}
+
+
 def fit_candidate(
     evaluator: ModelEvaluator,
     name: str,
@@ -251,7 +295,11 @@ def fit_candidate(
 
     spec = REGISTRY[name].params[0]
     grid = _grid(spec.hi, settings)
-    feats = np.array([evaluator.features({name: {spec.name: float(p)}}) for p in grid])
+
+    def at(p: float) -> FloatArray:
+        return _retuned_features(evaluator, {name: {spec.name: p}}, meas)
+
+    feats = np.array([at(float(p)) for p in grid])
     rows = np.ones(len(meas.points), dtype=bool)
     p0, _ = _scan(grid, feats, base_features, meas, rows)
     c0 = chi2(base_features, meas)
@@ -259,7 +307,7 @@ def fit_candidate(
         p0 = float(grid[0])
 
     def cost(u: float) -> float:
-        return chi2(evaluator.features({name: {spec.name: float(10.0**u)}}), meas)
+        return chi2(at(float(10.0**u)), meas)
 
     u0 = math.log10(p0)
     lo, hi = math.log10(grid[0]), math.log10(grid[-1])
@@ -273,7 +321,8 @@ def fit_candidate(
         (chi2(feats[j], meas), float(grid[j])) for j in range(len(grid))
     ]
     c2, value = min(candidates)
-    fitted = evaluator.features({name: {spec.name: value}}) if value > 0 else base_features
+    fitted = at(value) if value > 0 else base_features
+    model_effects = _retuned(evaluator, {name: {spec.name: value}}, meas)
     n = meas.values.size
     d = c0 - c2
     f_stat = d / max(1.0, c2 / max(n - 1, 1))
@@ -303,6 +352,7 @@ def fit_candidate(
         aic=c2 + 2.0,
         bic=c2 + math.log(n),
         features=fitted,
+        model_effects=model_effects,
     )
 
 
