@@ -158,3 +158,11 @@ def test_unknown_hinge_kind_is_refused():
 
     with pytest.raises(ParameterError, match="hinge kind"):
         MeshSettings.for_hinge("telescope")
+
+
+def test_strong_grading_on_coarse_arcs_does_not_invert():
+    # defect: arc_grading 9 over three segments per quarter (growth ratio 3) inverted an
+    # element next to the ring (synth's finer mesh at Δr 0.2 mm); the growth is now capped
+    settings = MeshSettings(size_mm=3.6, contact_size_mm=1.5, arc_grading=9.0)
+    _, report = mesh_hinge(make_general_hinge(GeneralHingeParams(clearance_mm=0.2)), settings)
+    assert report.min_scaled_jacobian > 0.05
