@@ -93,6 +93,24 @@ class CycleResult:
         stage = np.array([0] + [i.stage for i in self.increments], dtype=np.int64)
         return F, d, stage
 
+    def machine_path(self) -> tuple[FloatArray, FloatArray]:
+        """Return the loop the grips follow, free play included: (force (n,) [N], δ (n,) [mm]).
+
+        Where the pin changes sides (at F = 0) the free play is crossed at zero force, so a
+        point at F = 0 in the new touching configuration is inserted; without it a loop
+        area would count a spurious F·4Δr trapezoid.
+        """
+        F, d, _ = self.loop_arrays(with_free_play=True)
+        side = np.array([1] + [i.side for i in self.increments])
+        F_out, d_out = [F[0]], [d[0]]
+        for k in range(1, len(F)):
+            if side[k] != side[k - 1]:
+                F_out.append(0.0)
+                d_out.append(side[k] * self.free_play_mm / 2)
+            F_out.append(F[k])
+            d_out.append(d[k])
+        return np.array(F_out), np.array(d_out)
+
     def last_loop(self) -> slice:
         """Slice of increments (into ``loop_arrays``) spanning the last +Fg → −Fg → +Fg loop."""
         n_stage = len(self.settings.stages())

@@ -72,16 +72,8 @@ def write_loop_png(result: CycleResult, path: Path, *, title: str = "") -> Path:
     ax.grid(alpha=0.3)
     if play:
         ax2 = axes[0, 1]
-        _, d_raw, _ = result.loop_arrays(with_free_play=True)
-        side = np.array([1] + [i.side for i in result.increments])
-        xs, ys = [d_raw[0]], [F[0]]
-        for k in range(1, len(F)):
-            if side[k] != side[k - 1]:  # the free-play traverse happens at F = 0
-                xs.append(side[k] * result.free_play_mm / 2)
-                ys.append(0.0)
-            xs.append(d_raw[k])
-            ys.append(F[k])
-        ax2.plot(np.asarray(xs) * 1e3, ys, "-", color="grey", lw=1.2)
+        F_raw, d_raw = result.machine_path()
+        ax2.plot(d_raw * 1e3, F_raw, "-", color="grey", lw=1.2)
         ax2.axhline(0, color="k", lw=0.5)
         ax2.set_xlabel("grip displacement [µm], with the free play 4Δr")
         ax2.set_ylabel("force F [N]")

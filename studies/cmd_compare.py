@@ -104,7 +104,7 @@ def run_model_for_cases(
     out = {}
     for c in cases:
         r = runs[(c.clearance_mm, c.amplitude_n)]
-        F, d, _ = r.loop_arrays(with_free_play=with_free_play)
+        F, d = r.machine_path() if with_free_play else r.loop_arrays()[:2]
         source = f"model: Δr = {c.clearance_mm:g} mm, Fg = {c.amplitude_n:g} N"
         out[c.case_id] = ModelResult(Loop(F, d, None, source), r.metrics())
     return out, runs
@@ -117,7 +117,7 @@ def _write_model_loops(
     folder.mkdir(parents=True, exist_ok=True)
     files = []
     for (clearance, amp), r in runs.items():
-        F, d, _ = r.loop_arrays(with_free_play=free_play)
+        F, d = r.machine_path() if free_play else r.loop_arrays()[:2]
         path = folder / f"clearance_{clearance:g}mm_F{amp:g}N.csv"
         np.savetxt(
             path,

@@ -175,22 +175,8 @@ def parse_design(text: str) -> tuple[tuple[float, tuple[float, ...]], ...]:
 
 
 def machine_path(result: CycleResult) -> tuple[FloatArray, FloatArray]:
-    """Return the loop the grips follow, free play included: (force (n,) [N], δ (n,) [mm]).
-
-    Where the pin changes sides (at F = 0) the free play is crossed at zero force: a
-    point at F = 0 in the new touching configuration is inserted (δ there is 0 relative
-    to it; no effect in ``fe.effects`` moves an unloaded configuration with clearance).
-    """
-    F, d, _ = result.loop_arrays(with_free_play=True)
-    side = np.array([1] + [i.side for i in result.increments])
-    F_out, d_out = [F[0]], [d[0]]
-    for k in range(1, len(F)):
-        if side[k] != side[k - 1]:
-            F_out.append(0.0)
-            d_out.append(side[k] * result.free_play_mm / 2)
-        F_out.append(F[k])
-        d_out.append(d[k])
-    return np.array(F_out), np.array(d_out)
+    """Return the loop the grips follow, free play crossed at zero force (``CycleResult.machine_path``)."""
+    return result.machine_path()
 
 
 @dataclass(frozen=True)

@@ -167,3 +167,18 @@ def test_too_small_contact_window_is_caught(loose):
         cycle(loose, 0.1, amplitude_n=500.0, mu=0.2, contact_window=1e-5)
     assert isinstance(info.value.partial, CycleResult)
     assert info.value.residual > 0
+
+
+def test_machine_path_crosses_the_free_play_at_zero_force(loose_400):
+    # defect: a loop with the free play added but no zero-force traverse counted a
+    # spurious F·4Δr trapezoid at every side change (35x the true work in compare)
+    def work(F, d):
+        return float(np.sum(0.5 * (F[1:] + F[:-1]) * np.diff(d)))
+
+    F, d, _ = loose_400.loop_arrays()
+    F_raw, d_raw = loose_400.machine_path()
+    assert work(F_raw, d_raw) == pytest.approx(work(F, d), rel=1e-9)
+    assert np.ptp(d_raw) > loose_400.free_play_mm
+    assert np.all(
+        F_raw[np.abs(np.diff(d_raw, prepend=d_raw[0])) > 0.5 * loose_400.free_play_mm] == 0.0
+    )
