@@ -304,9 +304,7 @@ def _advance(
 
 def _summed(res: IncrementResult, works: FloatArray, iters: int) -> IncrementResult:
     """Return ``res`` with per-point works replaced by sub-step totals (kept as length-1 arrays)."""
-    from dataclasses import replace
-
-    return replace(
+    return dataclasses.replace(
         res, friction_work=np.array([works[0]]), normal_work=np.array([works[1]]), iterations=iters
     )
 

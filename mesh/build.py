@@ -10,7 +10,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import MeshQualityError
-from cad.model import FaceRole, HingeModel, Part
+from cad.model import FaceRole, HingeModel, Part, Sweep
 from cad.surfaces import Cylinder
 from mesh.facets import boundary_facets, select_facets
 from mesh.hexmesh import HexMesh
@@ -67,10 +67,9 @@ def _contact_sizes(model: HingeModel, part: Part, s: MeshSettings) -> tuple[Circ
 
 
 def _slab_dz(
-    model: HingeModel, part: Part, s: MeshSettings, circles: tuple[CircleSize, ...]
+    model: HingeModel, part: Part, sweep: Sweep, s: MeshSettings, circles: tuple[CircleSize, ...]
 ) -> tuple[float, ...]:
     """Layer thickness per slab: the contact size where a contact face spans the slab, else global."""
-    assert part.sweep is not None
     contact_z = [
         (f.box[0][2], f.box[1][2])
         for f in model.faces.values()
@@ -78,7 +77,7 @@ def _slab_dz(
     ]
     fine = min((c.size_mm for c in circles), default=s.size_for(part.name))
     out = []
-    for slab in part.sweep.slabs:
+    for slab in sweep.slabs:
         in_contact = any(
             lo <= slab.z0_mm + 1e-9 and slab.z1_mm <= hi + 1e-9 for lo, hi in contact_z
         )
@@ -97,7 +96,7 @@ def mesh_part(model: HingeModel, part: Part, s: MeshSettings) -> tuple[FloatArra
         profile = mesh_profile(
             part.sweep, s.size_for(part.name), circles, arc_grading=s.arc_grading
         )
-        return extrude(profile, part.sweep, _slab_dz(model, part, s, circles))
+        return extrude(profile, part.sweep, _slab_dz(model, part, part.sweep, s, circles))
     from mesh.volume import mesh_solid_hex  # only volume-meshed parts need it
 
     error: MeshQualityError | None = None

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import json
 import time
 from dataclasses import dataclass
@@ -19,15 +18,6 @@ from mesh.picture import write_mesh_png
 from mesh.settings import MeshSettings
 
 HINGES = ("general", "bearing")
-
-
-def sha256_of(path: Path) -> str:
-    """Return the hex SHA-256 of a file's content."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def make_model(
