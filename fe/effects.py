@@ -180,7 +180,25 @@ class FrameCompliance(Effect):
 
 
 @dataclass(frozen=True)
-class RoughnessSoftening(Effect):
+class _InterfaceCompliance(Effect):
+    """An interface compliance per unit area added to some local components of ``W``.
+
+    ``W_kk,ii += c / A_i`` for every point i and each component k in ``components``
+    (0 normal, 1 and 2 tangential); the parameter is ``compliance_mm3_per_n``.
+    """
+
+    components: tuple[int, ...] = ()
+
+    def apply(self, configs: Mapping[int, Condensed], values: Values) -> dict[int, Condensed]:
+        """Add ``c / A_i`` to each point's diagonal entries of ``W`` in ``components``."""
+        c = values["compliance_mm3_per_n"]
+        if c == 0.0:
+            return dict(configs)
+        return _map_configs(configs, lambda cond: _add_diagonal(cond, self.components, c))
+
+
+@dataclass(frozen=True)
+class RoughnessSoftening(_InterfaceCompliance):
     """Contact softening by surface roughness: a linear pressure–overclosure law.
 
     MECHANISM: asperities of the turned pin and reamed holes deform before the nominal
@@ -222,16 +240,11 @@ class RoughnessSoftening(Effect):
         ),
     )
 
-    def apply(self, configs: Mapping[int, Condensed], values: Values) -> dict[int, Condensed]:
-        """Add ``c_n / A_i`` to each point's normal diagonal entry of ``W``."""
-        c = values["compliance_mm3_per_n"]
-        if c == 0.0:
-            return dict(configs)
-        return _map_configs(configs, lambda cond: _add_diagonal(cond, (0,), c))
+    components: tuple[int, ...] = (0,)
 
 
 @dataclass(frozen=True)
-class TangentialCompliance(Effect):
+class TangentialCompliance(_InterfaceCompliance):
     """Shear compliance of the asperity layer (pre-sliding microslip of the asperities).
 
     MECHANISM: before the nominal surfaces slip, the asperity junctions shear elastically:
@@ -269,12 +282,7 @@ class TangentialCompliance(Effect):
         ),
     )
 
-    def apply(self, configs: Mapping[int, Condensed], values: Values) -> dict[int, Condensed]:
-        """Add ``c_t / A_i`` to each point's two tangential diagonal entries of ``W``."""
-        c = values["compliance_mm3_per_n"]
-        if c == 0.0:
-            return dict(configs)
-        return _map_configs(configs, lambda cond: _add_diagonal(cond, (1, 2), c))
+    components: tuple[int, ...] = (1, 2)
 
 
 @dataclass(frozen=True)

@@ -246,15 +246,20 @@ def _require_column(table: _Table, quantity: str, units: Mapping[str, float]) ->
     return col
 
 
-def _number(table: _Table, i: int, column: str) -> float:
-    text = table.rows[i][table.header.index(column)]
+def _finite(text: str, where: str, shown: str | None = None) -> float:
+    """Parse a finite number, or raise DataError at ``where`` quoting ``shown`` (default text)."""
+    quoted = text if shown is None else shown
     try:
         value = float(text)
     except ValueError:
-        raise DataError(f"{table.where(i, column)}: not a number: {text!r}") from None
+        raise DataError(f"{where}: not a number: {quoted!r}") from None
     if not math.isfinite(value):
-        raise DataError(f"{table.where(i, column)}: not a finite number: {text!r}")
+        raise DataError(f"{where}: not a finite number: {quoted!r}")
     return value
+
+
+def _number(table: _Table, i: int, column: str) -> float:
+    return _finite(table.rows[i][table.header.index(column)], table.where(i, column))
 
 
 def _column(table: _Table, column: str, factor: float) -> FloatArray:
@@ -396,14 +401,7 @@ def read_bluehill(path: Path | str) -> Loop:
 def _bluehill_number(path: Path, line: int, row: Sequence[str], j: int, name: str) -> float:
     if j >= len(row):
         raise DataError(f"{path}: line {line}, column {name}: missing value")
-    text = row[j].replace(",", "")
-    try:
-        value = float(text)
-    except ValueError:
-        raise DataError(f"{path}: line {line}, column {name}: not a number: {row[j]!r}") from None
-    if not math.isfinite(value):
-        raise DataError(f"{path}: line {line}, column {name}: not a finite number: {row[j]!r}")
-    return value
+    return _finite(row[j].replace(",", ""), f"{path}: line {line}, column {name}", row[j])
 
 
 def read_loop_file(path: Path | str) -> Loop:
