@@ -46,7 +46,7 @@ import numpy.typing as npt
 import scipy.sparse as sp
 
 from cad.errors import MeshQualityError
-from fe.assembly import Factorization, assemble_stiffness, dofs_of
+from fe.assembly import Factorization, assemble_stiffness, dofs_of, inverse_block
 from fe.contact_geometry import ContactGeometry, contact_operator
 from fe.element import ElementType
 from mesh.hexmesh import HexMesh
@@ -144,8 +144,12 @@ class HingeSystem:
                 logger.info("nodal compliance read from %s", cached)
             else:
                 pair = (
-                    _restricted_inverse(self.pin_factor, self.pin_free, dofs_of(slave_nodes)),
-                    _restricted_inverse(self.lug_factor, self.lug_free, dofs_of(master_nodes)),
+                    _restricted_inverse(
+                        self.K, self.pin_factor, self.pin_free, dofs_of(slave_nodes)
+                    ),
+                    _restricted_inverse(
+                        self.K, self.lug_factor, self.lug_free, dofs_of(master_nodes)
+                    ),
                 )
                 if cached is not None:
                     _save_atomic(cached, {"slave": pair[0], "master": pair[1]})
@@ -248,23 +252,22 @@ def _save_atomic(path: Path, arrays: dict[str, FloatArray]) -> None:
     os.replace(tmp, path)
 
 
-def _restricted_inverse(factor: Factorization, free: IntArray, dofs: IntArray) -> FloatArray:
+def _restricted_inverse(
+    K: sp.csr_matrix, factor: Factorization, free: IntArray, dofs: IntArray
+) -> FloatArray:
     """Return (K_ff⁻¹)[dofs, dofs], shape (n, n), with zero rows/columns at supported DOFs.
 
-    Solved by blocks of ``BLOCK_RHS`` unit right-hand sides.
+    ``fe.assembly.inverse_block``: a Schur complement by partial factorisation with
+    PARDISO, else blocks of ``BLOCK_RHS`` unit right-hand sides solved with ``factor``.
     """
     pos = np.full(int(max(free.max(), dofs.max())) + 1, -1, dtype=np.int64)
     pos[free] = np.arange(len(free))
     local = pos[dofs]  # -1 where the DOF is supported (zero displacement)
     active = np.flatnonzero(local >= 0)
     out = np.zeros((len(dofs), len(dofs)))
-    for j in range(0, len(active), BLOCK_RHS):
-        cols = active[j : j + BLOCK_RHS]
-        B = np.zeros((len(free), len(cols)))
-        B[local[cols], np.arange(len(cols))] = 1.0
-        X = factor.solve(B)
-        out[np.ix_(active, cols)] = X[local[active]]
-    return 0.5 * (out + out.T)
+    block = inverse_block(K[free][:, free], local[active], factor=factor, block_rhs=BLOCK_RHS)
+    out[np.ix_(active, active)] = block
+    return out
 
 
 @dataclass(frozen=True)

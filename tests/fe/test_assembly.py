@@ -11,6 +11,7 @@ from fe.assembly import (
     assemble_stiffness,
     dofs_of,
     element_dofs,
+    inverse_block,
     nodal_average,
     solve_dirichlet,
     strain_energy,
@@ -225,3 +226,23 @@ def test_factorization_rejects_unsymmetric_and_bad_rhs():
 def test_pardiso_reports_indefinite_matrix():
     with pytest.raises(ParameterError, match="PARDISO"):
         Factorization(sp.csr_matrix(np.diag([1.0, -1.0, 2.0])), backend=LinearSolverBackend.PARDISO)
+
+
+@pytest.mark.parametrize("backend", BACKENDS, ids=BACKEND_IDS)
+def test_inverse_block_matches_dense_inverse_in_given_order(backend):
+    K_ff = _free_block()
+    idx = np.random.default_rng(3).choice(K_ff.shape[0], 40, replace=False)  # unsorted
+    dense = np.linalg.inv(K_ff.toarray())[np.ix_(idx, idx)]
+    block = inverse_block(K_ff, idx, backend=backend, block_rhs=16)
+    np.testing.assert_allclose(block, dense, rtol=1e-9, atol=1e-12 * np.abs(dense).max())
+    np.testing.assert_array_equal(block, block.T)
+
+
+def test_inverse_block_rejects_repeats_and_indefinite():
+    K_ff = _free_block()
+    with pytest.raises(ParameterError, match="repeated"):
+        inverse_block(K_ff, [0, 1, 1])
+    with pytest.raises(ParameterError, match=r"idx must lie in \[0, "):
+        inverse_block(K_ff, [K_ff.shape[0]])
+    with pytest.raises(ParameterError, match="positive definite"):
+        inverse_block(sp.csr_matrix(np.diag([1.0, -1.0, 2.0, 3.0])), [0, 1])
