@@ -4,15 +4,22 @@
 the named effects' parameters (``validation.calibrate``), writes the extended model to
 ``DIR/MODEL.toml``, appends baseline → +effect → … to ``DIR/ledger.json`` and
 ``DIR/ledger.csv`` and draws ``DIR/ledger.png`` (error per step, held-out error, noise
-level). Run ``hingelab compare DIR/MODEL.toml DATA_DIR`` for the per-case comparison.
+level), then re-runs the comparison with the new model (``hingelab compare``'s work, into
+``DIR/compare/``: per-case errors and pass/fail, overlays, error map, fingerprint) and
+prints how many cases pass before and after; ``--no-compare`` skips that.
 """
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from studies.pipeline import dumps
+
+if TYPE_CHECKING:
+    from validation.measurements import MeasurementSet
+    from validation.model_file import ModelSpec
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -25,6 +32,14 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--json", action="store_true", help="print the ledger as JSON")
     p.add_argument("--model-error", type=float, default=0.02, metavar="REL", help="model floor")
     p.add_argument("--increments", type=int, default=8, metavar="N", help="increments per stage")
+    p.add_argument(
+        "--uncertainty",
+        type=float,
+        default=0.05,
+        metavar="U",
+        help="compare: relative uncertainty of cases without replicates (default 0.05)",
+    )
+    p.add_argument("--no-compare", action="store_true", help="do not re-run the comparison")
     p.set_defaults(func=run)
 
 
@@ -49,8 +64,13 @@ def run(args: argparse.Namespace) -> int:
     model_out = write_model(new_spec, args.out / "MODEL.toml")
     every = append_ledger(args.out, rows)
     png = plot_ledger(every, args.out / "ledger.png")
+    comparison = None if args.no_compare else _compare(new_spec, data, args)
     if args.json:
-        print(dumps({"model": str(model_out), "ledger": every, "plot": str(png)}))
+        print(
+            dumps(
+                {"model": str(model_out), "ledger": every, "plot": str(png), "compare": comparison}
+            )
+        )
     else:
         for r in every:
             params = ", ".join(f"{k} = {v:.3g}" for k, v in r["params"].items())
@@ -59,4 +79,29 @@ def run(args: argparse.Namespace) -> int:
                 f"BIC {r['bic']:9.1f}  {params}"
             )
         print(f"model written to {model_out}; ledger in {args.out}/ (ledger.json, .csv, .png)")
+        if comparison is not None:
+            print(
+                f"compare with the new model: {comparison['n_pass']}/{comparison['n_cases']} "
+                f"cases pass; details in {comparison['folder']}/"
+            )
     return 0
+
+
+def _compare(spec: ModelSpec, data: MeasurementSet, args: argparse.Namespace) -> dict[str, object]:
+    """Re-run the comparison with the calibrated model into ``args.out/compare``; its summary."""
+    from studies.cmd_compare import compare_and_write
+    from validation.compare import CompareSettings
+
+    folder = args.out / "compare"
+    cmp, _report = compare_and_write(
+        spec,
+        data,
+        folder,
+        CompareSettings(default_rel_uncertainty=args.uncertainty),
+    )
+    return {
+        "n_pass": cmp.summary["n_pass"],
+        "n_cases": cmp.summary["n_cases"],
+        "passed": {c.case.case_id: c.passed for c in cmp.cases},
+        "folder": str(folder),
+    }

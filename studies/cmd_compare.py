@@ -79,13 +79,15 @@ def run_model_for_cases(
     """Run the model's cycle at every (clearance, amplitude) of the cases.
 
     One mesh, one factorisation and one pair of condensed configurations per clearance,
-    reused for every amplitude there; replicates share one run.
+    reused for every amplitude there; replicates share one run. The model's effects
+    (``spec.effects``, e.g. written by ``hingelab calibrate``) are switched on.
 
     Returns:
         (case_id → ModelResult, (clearance, amplitude) → CycleResult).
     """
     from cad.general import make_general_hinge
     from fe.cycle import run_cycle
+    from fe.effects import run_cycle_with_effects
     from fe.hinge_system import build_system
     from mesh.build import mesh_hinge
     from validation.model_file import with_clearance
@@ -98,8 +100,14 @@ def run_model_for_cases(
         configs = None
         for amp in sorted({c.amplitude_n for c in cases if c.clearance_mm == clearance}):
             settings = dataclasses.replace(spec.cycle, amplitude_n=amp)
-            result = run_cycle(system, clearance, settings, configs=configs)
-            configs = result.configs
+            if spec.effects:  # the model's effects act on the base configurations
+                with_effects = run_cycle_with_effects(
+                    system, clearance, settings, spec.effects, configs=configs
+                )
+                result, configs = with_effects.result, with_effects.base_configs
+            else:
+                result = run_cycle(system, clearance, settings, configs=configs)
+                configs = result.configs
             runs[(clearance, amp)] = result
     out = {}
     for c in cases:
@@ -131,35 +139,68 @@ def _write_model_loops(
     return files
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run ``hingelab compare``."""
+def compare_and_write(
+    spec: ModelSpec,
+    data: Any,
+    out: Path,
+    settings: CompareSettings,
+    *,
+    free_play: bool = True,
+    plots: bool = True,
+) -> tuple[Comparison, dict[str, Any]]:
+    """Run the model at every case, compare, write ``out/comparison.json``, loops and pictures.
+
+    Args:
+        spec: The model (with its effects).
+        data: The measurement set (``validation.measurements.MeasurementSet``).
+        out: Output folder (created).
+        settings: Pass/fail settings.
+        free_play: Compare with the model loop including the 4Δr free play traverse.
+        plots: Draw the pictures.
+
+    Returns:
+        (the comparison, the report written to ``comparison.json``).
+    """
     from validation.compare import compare
-    from validation.measurements import read_measurement_set
-    from validation.model_file import read_model
 
     t0 = time.perf_counter()
-    spec = read_model(args.model)
-    data = read_measurement_set(args.data)
-    settings = CompareSettings(k=args.k, default_rel_uncertainty=args.uncertainty)
     _check_cases(spec, data.cases)
-    free_play = not args.without_free_play
     models, runs = run_model_for_cases(spec, data.cases, with_free_play=free_play)
     cmp = compare(models, data, settings)
-    args.out.mkdir(parents=True, exist_ok=True)
-    files: dict[str, Any] = {"model_loops": _write_model_loops(runs, args.out, free_play)}
-    if not args.no_plots:
+    out.mkdir(parents=True, exist_ok=True)
+    files: dict[str, Any] = {"model_loops": _write_model_loops(runs, out, free_play)}
+    if plots:
         from validation.plots import write_comparison_plots
 
-        files.update({k: str(v) for k, v in write_comparison_plots(cmp, args.out).items()})
+        files.update({k: str(v) for k, v in write_comparison_plots(cmp, out).items()})
+    files["comparison_json"] = str(out / "comparison.json")
     report = {
         **cmp.to_dict(),
-        "model_file": str(args.model),
-        "data": str(args.data),
         "model_loop_free_play": free_play,
         "files": files,
         "wall_s": time.perf_counter() - t0,
     }
-    files["comparison_json"] = str(args.out / "comparison.json")
+    (out / "comparison.json").write_text(dumps(report))
+    return cmp, report
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``hingelab compare``."""
+    from validation.measurements import read_measurement_set
+    from validation.model_file import read_model
+
+    spec = read_model(args.model)
+    data = read_measurement_set(args.data)
+    settings = CompareSettings(k=args.k, default_rel_uncertainty=args.uncertainty)
+    cmp, report = compare_and_write(
+        spec,
+        data,
+        args.out,
+        settings,
+        free_play=not args.without_free_play,
+        plots=not args.no_plots,
+    )
+    report = {"model_file": str(args.model), "data": str(args.data), **report}
     (args.out / "comparison.json").write_text(dumps(report))
     if args.json:
         print(dumps(report))

@@ -203,3 +203,23 @@ def test_compare_cli_bad_input_exits_1(tmp_path, capsys, model_text, cases_row, 
     err = capsys.readouterr().err
     assert err.startswith("hingelab compare: error:")
     assert re.search(match, err), err
+
+
+def test_compare_runs_the_models_effects(tmp_path):
+    """A calibrated model file holds effects: compare must run them, not the bare model."""
+    import dataclasses
+
+    from studies.cmd_compare import run_model_for_cases
+    from validation.measurements import Case
+
+    spec, _ = _model_file(tmp_path / "MODEL.toml")
+    c_f = 2e-5  # mm/N
+    framed = dataclasses.replace(spec, effects={"frame_compliance": {"compliance_mm_per_n": c_f}})
+    case = [Case("c", "general", 0.0, 0.0, 400.0)]
+    bare, _ = run_model_for_cases(spec, case)
+    with_frame, _ = run_model_for_cases(framed, case)
+    d0 = bare["c"].metrics["disp_at_peak_mm"]
+    assert with_frame["c"].metrics["disp_at_peak_mm"] == pytest.approx(d0 + c_f * 400.0, rel=1e-9)
+    assert with_frame["c"].loop.displacement_mm.max() == pytest.approx(
+        bare["c"].loop.displacement_mm.max() + c_f * 400.0, rel=1e-9
+    )

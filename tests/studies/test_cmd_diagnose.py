@@ -65,6 +65,20 @@ def stubs(monkeypatch):
     monkeypatch.setattr(validation.calibrate, "calibrate", fake_calibrate)
     monkeypatch.setattr(validation.measurements, "read_measurement_set", lambda path: None)
 
+    import types
+
+    import studies.cmd_compare
+
+    compared = []
+
+    def fake_compare_and_write(spec, data, out, settings, **kw):
+        compared.append((spec, out))
+        case = types.SimpleNamespace(case=types.SimpleNamespace(case_id="c1"), passed=True)
+        return types.SimpleNamespace(summary={"n_pass": 1, "n_cases": 1}, cases=[case]), {}
+
+    monkeypatch.setattr(studies.cmd_compare, "compare_and_write", fake_compare_and_write)
+    return compared
+
 
 def test_diagnose_prints_json(model_path, tmp_path, stubs, capsys):
     assert main(["diagnose", str(model_path), str(tmp_path), "--json"]) == 0
@@ -88,7 +102,12 @@ def test_calibrate_writes_model_ledger_and_plot(model_path, tmp_path, stubs, cap
         str(out),
     ]
     assert main(argv) == 0
-    assert "+frame_compliance" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "+frame_compliance" in printed
+    assert "compare with the new model: 1/1 cases pass" in printed
+    ((compared_spec, folder),) = stubs  # the comparison re-ran with the calibrated model
+    assert compared_spec.effects["frame_compliance"]["compliance_mm_per_n"] == 2e-5
+    assert folder == out / "compare"
     spec = read_model(out / "MODEL.toml", REGISTRY)
     assert np.isclose(spec.effects["frame_compliance"]["compliance_mm_per_n"], 2e-5)
     assert (out / "ledger.png").is_file()
