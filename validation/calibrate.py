@@ -71,7 +71,7 @@ def calibrate(
         if n in spec.effects:
             raise ParameterError(f"--effects: {n!r} is already in the model")
     meas = measured_features(data, s.features)
-    n_feat = meas.values.size
+    n_feat = meas.n_obs
     ev = ModelEvaluator(spec, meas.points, s.increments_per_stage, s.clearance_increments)
     base = ev.features({})
     c = chi2(base, meas)

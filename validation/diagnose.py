@@ -5,7 +5,10 @@ Workflow (``diagnose``):
 1. **Features** (``validation.features``): each measured design point becomes three
    numbers, δ_max, W_cycle and the opening at ½Fg, with σ from noise, model floor and replicates; the
    residual is ``r = (model − measured)/σ``, N = 3 × design points. Features instead of
-   loop points sidestep the strong correlation of residuals along a loop.
+   loop points sidestep the strong correlation of residuals along a loop. A design point
+   measured by η only (an η-only table, like the paper's Table 1) is one observation,
+   its η (``MeasuredFeatures``); with such data two candidates that change η alike are
+   told apart only by a loop, and ``indistinguishable`` names the loop to measure.
 2. **Baseline**: χ²₀ of the model file as it is (μ is taken from the model file, i.e.
    calibrated beforehand; it is not refitted here).
 3. **Per candidate** (every registry effect not already in the model, applicable to all
@@ -85,44 +88,102 @@ class DiagnoseSettings:
 class MeasuredFeatures:
     """Measured features per design point.
 
+    A design point measured by η only (an η-only table such as the paper's Table 1) has
+    one observation, its η, kept in column 1 with columns 0 and 2 NaN; its residual is
+    ``(η_model − η)/σ_η`` with ``η_model = W/(π Fg δ_max)`` from the model's features.
+
     Attributes:
         points: (clearance [mm], amplitude [N]) per row.
-        values: Features, shape (n_points, 3).
+        values: Features, shape (n_points, 3) (η-only rows: [NaN, η, NaN]).
         sigma: Their σ, shape (n_points, 3).
+        eta_only: Rows measured by η only, shape (n_points,).
     """
 
     points: tuple[tuple[float, float], ...]
     values: FloatArray
     sigma: FloatArray
+    eta_only: npt.NDArray[np.bool_] | None = None
 
     @property
     def amplitudes(self) -> FloatArray:
         """Amplitude of each row, shape (n_points,) [N]."""
         return np.array([p[1] for p in self.points])
 
+    @property
+    def eta_rows(self) -> npt.NDArray[np.bool_]:
+        """Rows measured by η only, shape (n_points,)."""
+        if self.eta_only is None:
+            return np.zeros(len(self.points), dtype=bool)
+        return np.asarray(self.eta_only, dtype=bool)
+
+    @property
+    def n_obs(self) -> int:
+        """Number of observations N: three per loop, one per η-only design point."""
+        k = int(np.count_nonzero(self.eta_rows))
+        return 3 * (len(self.points) - k) + k
+
 
 def measured_features(data: MeasurementSet, settings: FeatureSettings) -> MeasuredFeatures:
-    """Summarise every design point of a measurement set (replicates averaged)."""
-    points, values, sigmas = [], [], []
+    """Summarise every design point of a measurement set (replicates averaged).
+
+    A design point with loops uses them (module ``validation.features``); one with only
+    η values (an η-only table) becomes an η-only row: η the mean of its values, σ_η the
+    replicates' standard deviation if there are several, combined in quadrature with
+    ``eta_rel_sigma · η`` (the stated uncertainty: tables carry none) and the model floor
+    ``rel_floor · η + eta_floor``.
+    """
+    points, values, sigmas, eta_only = [], [], [], []
+    by_id = data.by_id()
     for (_, clearance, _, amp), ids in data.replicate_groups().items():
         loops = []
+        etas = []
         for cid in ids:
-            loop = data.by_id()[cid].loop
-            if loop is not None:
-                loops.append(process_loop(loop.force_n, loop.displacement_mm, loop.source))
-        if not loops:
-            continue
-        feats = np.array([loop_features(p) for p in loops])
-        rep = np.std(feats, axis=0, ddof=1) if len(loops) > 1 else None
+            case = by_id[cid]
+            if case.loop is not None:
+                loops.append(
+                    process_loop(case.loop.force_n, case.loop.displacement_mm, case.loop.source)
+                )
+            elif case.eta is not None:
+                etas.append(float(case.eta))
         points.append((clearance, amp))
-        values.append(feats.mean(axis=0))
-        sigmas.append(feature_sigma(loops, settings, rep))
-    return MeasuredFeatures(tuple(points), np.array(values), np.array(sigmas))
+        if loops:
+            feats = np.array([loop_features(p) for p in loops])
+            rep = np.std(feats, axis=0, ddof=1) if len(loops) > 1 else None
+            values.append(feats.mean(axis=0))
+            sigmas.append(feature_sigma(loops, settings, rep))
+            eta_only.append(False)
+        elif etas:
+            eta = float(np.mean(etas))
+            rep_eta = float(np.std(etas, ddof=1)) if len(etas) > 1 else 0.0
+            s_eta = math.sqrt(
+                rep_eta**2
+                + (settings.eta_rel_sigma * eta) ** 2
+                + (settings.rel_floor * eta + settings.eta_floor) ** 2
+            )
+            values.append(np.array([np.nan, eta, np.nan]))
+            sigmas.append(np.array([np.nan, s_eta, np.nan]))
+            eta_only.append(True)
+        else:
+            points.pop()
+    return MeasuredFeatures(
+        tuple(points), np.array(values), np.array(sigmas), np.array(eta_only, dtype=bool)
+    )
 
 
 def residuals(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:
-    """Return (model − measured)/σ, shape (n_points, 3); a failed run (NaN) counts 1e3."""
-    r = (np.asarray(model) - meas.values) / meas.sigma
+    """Return (model − measured)/σ, shape (n_points, 3); a failed run (NaN) counts 1e3.
+
+    η-only rows: ``[0, (η_model − η)/σ_η, 0]``.
+    """
+    model = np.asarray(model, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = (model - meas.values) / meas.sigma
+        eta_rows = meas.eta_rows
+        if np.any(eta_rows):
+            _, eta_model = derived(model[eta_rows], meas.amplitudes[eta_rows])
+            r_eta = (eta_model - meas.values[eta_rows, 1]) / meas.sigma[eta_rows, 1]
+            r[eta_rows] = 0.0
+            r[eta_rows, 1] = r_eta
     return np.where(np.isfinite(r), r, 1e3)
 
 
@@ -323,7 +384,7 @@ def fit_candidate(
     c2, value = min(candidates)
     fitted = at(value) if value > 0 else base_features
     model_effects = _retuned(evaluator, {name: {spec.name: value}}, meas)
-    n = meas.values.size
+    n = meas.n_obs
     d = c0 - c2
     f_stat = d / max(1.0, c2 / max(n - 1, 1))
     p_value = float(stats.f.sf(f_stat, 1, max(n - 1, 1)))
@@ -365,20 +426,26 @@ def residual_pattern(model: FloatArray, meas: MeasuredFeatures) -> list[str]:
     the same sign beyond 2σ; "grows with amplitude" when, within a clearance, |e| at the
     largest amplitude exceeds |e| at the smallest by more than 2σ; likewise for clearance.
     """
-    amps = meas.amplitudes
-    clear = np.array([p[0] for p in meas.points])
-    dm, em = derived(model, amps)
-    dd, ed = derived(meas.values, amps)
-    elastic = np.maximum(np.abs(dd - 2.0 * clear), 1e-12)  # δ_max without the free play 2Δr
-    s_delta = meas.sigma[:, 0] / elastic
-    s_eta = meas.sigma[:, 1] / np.abs(meas.values[:, 1])
+    amps_all = meas.amplitudes
+    clear_all = np.array([p[0] for p in meas.points])
+    dm, em = derived(model, amps_all)
+    dd, ed = derived(meas.values, amps_all)
+    eta_rows = meas.eta_rows
+    ed = np.where(eta_rows, meas.values[:, 1], ed)  # η-only rows state η itself
+    elastic = np.maximum(np.abs(dd - 2.0 * clear_all), 1e-12)  # δ_max without the free play 2Δr
+    s_delta_all = meas.sigma[:, 0] / elastic
+    s_eta_all = meas.sigma[:, 1] / np.abs(meas.values[:, 1])
     words = []
-    for label, e, s, hi_word, lo_word in (
-        ("δ", (dm - dd) / elastic, s_delta, "too soft", "too stiff"),
-        ("η", np.where(np.isfinite(em), em / ed - 1.0, np.nan), s_eta, "η too high", "η too low"),
-    ):
-        if not np.all(np.isfinite(e)):
+    with np.errstate(invalid="ignore", divide="ignore"):
+        quantities = (
+            ("δ", (dm - dd) / elastic, s_delta_all, "too soft", "too stiff"),
+            ("η", em / ed - 1.0, s_eta_all, "η too high", "η too low"),
+        )
+    for label, e_all, s_all, hi_word, lo_word in quantities:
+        keep = np.isfinite(e_all) & np.isfinite(s_all)  # δ is not measured in η-only rows
+        if not np.any(keep):
             continue
+        e, s, amps, clear = e_all[keep], s_all[keep], amps_all[keep], clear_all[keep]
         if np.all(e > 2 * s):
             words.append(
                 f"{hi_word} at all amplitudes ({label} error {np.min(e):+.0%} … {np.max(e):+.0%})"
@@ -491,14 +558,34 @@ class Diagnosis:
 
 
 def _separating_test(a: CandidateFit, b: CandidateFit, meas: MeasuredFeatures) -> str:
-    """Name the design point and feature where two fitted models differ most (in σ)."""
-    diff = np.abs(a.features - b.features) / meas.sigma
-    i, k = np.unravel_index(int(np.nanargmax(diff)), diff.shape)
+    """Name the design point and quantity where two fitted models differ most.
+
+    Among the measured quantities the difference is in σ; if none differs by 2 σ (the
+    data cannot tell them apart), the quantity the data lack (e.g. δ_max when only η was
+    measured) where the two models' predictions differ most, relatively, is named as the
+    measurement to make.
+    """
+    with np.errstate(invalid="ignore", divide="ignore"):
+        diff = np.abs(residuals(a.features, meas) - residuals(b.features, meas))
+        diff[~np.isfinite(diff) | (diff >= 1e3)] = 0.0
+        i, k = np.unravel_index(int(np.argmax(diff)), diff.shape)
+        c, amp = meas.points[i]
+        quantity = "η" if meas.eta_rows[i] else FEATURES[k]
+        if diff[i, k] >= 2.0 or not np.any(meas.eta_rows):
+            return (
+                f"they differ most in {quantity} at Δr = {c:g} mm, Fg = {amp:g} N "
+                f"({diff[i, k]:.1f} σ); repeat that test (replicates shrink σ) or add cases beyond "
+                "the measured amplitudes and clearances there"
+            )
+        rel = np.abs(a.features - b.features) / np.maximum(np.abs(a.features), np.abs(b.features))
+        rel[~np.isfinite(rel)] = 0.0
+        rel[~meas.eta_rows] = 0.0  # loops measured there: already compared above
+    i, k = np.unravel_index(int(np.argmax(rel)), rel.shape)
     c, amp = meas.points[i]
     return (
-        f"they differ most in {FEATURES[k]} at Δr = {c:g} mm, Fg = {amp:g} N "
-        f"({diff[i, k]:.1f} σ); repeat that test (replicates shrink σ) or add cases beyond "
-        "the measured amplitudes and clearances there"
+        f"the measured η cannot separate them; measure the loop (force and displacement) at "
+        f"Δr = {c:g} mm, Fg = {amp:g} N: their {FEATURES[k]} differ by {rel[i, k]:.0%} "
+        f"({a.name}: {a.features[i, k]:.4g}, {b.name}: {b.features[i, k]:.4g})"
     )
 
 
@@ -582,7 +669,7 @@ def diagnose(
     )
     base = ev.features({})
     c0 = chi2(base, meas)
-    n = meas.values.size
+    n = meas.n_obs
     limit = float(stats.chi2.ppf(1.0 - s.alpha, n))
     skipped: dict[str, str] = {}
     names = []

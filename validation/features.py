@@ -55,10 +55,12 @@ class FeatureSettings:
         rel_floor: Relative model error of δ(±Fg) and W (default 2 %: the coarse model
             mesh against a finer one).
         eta_floor: Absolute η resolution added to σ_W as ``eta_floor · π F_max δ_max``.
+        eta_rel_sigma: Relative uncertainty of a stated η (η-only tables carry none).
     """
 
     rel_floor: float = 0.02
     eta_floor: float = 0.001
+    eta_rel_sigma: float = 0.05
 
 
 def loop_features(loop: ProcessedLoop) -> FloatArray:

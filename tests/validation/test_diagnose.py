@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -87,6 +88,62 @@ def test_features_of_an_ellipse_and_noise_sigma():
     assert np.all(s > 0)
     assert s[0] < 1e-5
     assert abs(loop_features(noisy)[1] - clean[1]) < 5 * s[1] + 0.02 * clean[1]
+
+
+def _eta_table(tmp_path, rows):
+    from validation.measurements import read_eta_table
+
+    path = tmp_path / "eta.csv"
+    lines = ["clearance_mm,amplitude_N,eta"] + [f"{c:g},{a:g},{e:g}" for c, a, e in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return read_eta_table(path)
+
+
+def test_eta_only_rows_count_once_and_compare_eta(tmp_path):
+    from validation.diagnose import chi2, measured_features, residuals
+    from validation.features import FeatureSettings
+
+    data = _eta_table(tmp_path, [(0.0, 100.0, 0.02), (0.0, 400.0, 0.02), (0.0, 400.0, 0.024)])
+    meas = measured_features(data, FeatureSettings(eta_rel_sigma=0.05))
+    assert meas.points == ((0.0, 100.0), (0.0, 400.0))
+    assert meas.eta_rows.tolist() == [True, True]
+    assert meas.n_obs == 2
+    assert meas.values[1, 1] == pytest.approx(0.022)  # replicates averaged
+    s_rep = np.std([0.02, 0.024], ddof=1)
+    expected = math.sqrt(s_rep**2 + (0.05 * 0.022) ** 2 + (0.02 * 0.022 + 0.001) ** 2)
+    assert meas.sigma[1, 1] == pytest.approx(expected)
+    amps = meas.amplitudes
+    delta = 1e-5 * amps
+    model = np.column_stack([delta, 0.03 * math.pi * amps * delta, 0.3 * delta])  # η = 0.03
+    r = residuals(model, meas)
+    assert r[:, [0, 2]].tolist() == [[0.0, 0.0], [0.0, 0.0]]
+    np.testing.assert_allclose(r[:, 1], (0.03 - meas.values[:, 1]) / meas.sigma[:, 1])
+    assert chi2(model, meas) == pytest.approx(float(np.sum(r[:, 1] ** 2)))
+    words = residual_pattern(model, meas)
+    assert any("η too high at all amplitudes" in w for w in words), words
+    assert not any(w.startswith("too s") for w in words)  # δ was not measured
+
+
+def test_eta_only_tie_asks_for_the_loop_that_separates(tmp_path):
+    data = _eta_table(tmp_path, [(0.0, 100.0, 0.01), (0.0, 400.0, 0.01)])
+    from validation.diagnose import measured_features
+    from validation.features import FeatureSettings
+
+    meas = measured_features(data, FeatureSettings())
+    amps = meas.amplitudes
+    soft = 1e-5 * amps * 1.5  # a series spring: δ 50 % larger, same η
+    stiff = 1e-5 * amps
+    a, b = _fit("frame_compliance", 1.0, n=2), _fit("tangential_compliance", 1.2, n=2)
+    a = dataclasses.replace(
+        a, features=np.column_stack([soft, 0.01 * math.pi * amps * soft, 0.1 * soft])
+    )
+    b = dataclasses.replace(
+        b, features=np.column_stack([stiff, 0.01 * math.pi * amps * stiff, 0.1 * stiff])
+    )
+    v = _verdict([a, b], 400.0, 2, 9.2, meas, DiagnoseSettings())
+    assert v[0] == "indistinguishable"
+    assert "measure the loop" in v[3], v[3]
+    assert "differ by 33%" in v[3]  # 1 − 1/1.5: every loop feature scales with δ here
 
 
 # --------------------------------------------------------------------------- end to end
@@ -220,6 +277,29 @@ def test_two_hidden_effects_are_found_in_two_rounds(spec, tmp_path):
     assert set(first.effects + second.effects) == set(hidden)
     _, rows3 = calibrate(spec2, data, list(second.effects), FAST)
     assert rows[0].error >= 5 * rows3[-1].error
+
+
+@pytest.mark.slow
+def test_eta_only_cases_cannot_tell_a_series_spring_from_shear_compliance(spec, tmp_path):
+    """At Δr = 0 the model is positively homogeneous: a frame compliance and a tangential
+    interface compliance both lower η by an amplitude-independent factor, so η-only cases
+    cannot separate them; the loop (δ_max) can, and the diagnosis must say so."""
+    from validation.diagnose import diagnose
+    from validation.loops import process_loop
+    from validation.measurements import read_eta_table, read_measurement_set
+
+    design = ((0.0, (100.0, 250.0, 400.0)),)
+    loops = tmp_path / "loops_set"
+    synth_set(spec, {"frame_compliance": {"compliance_mm_per_n": 2e-5}}, loops, 9, design)
+    rows = ["clearance_mm,amplitude_N,eta"]
+    for case in read_measurement_set(loops).cases:
+        m = process_loop(case.loop.force_n, case.loop.displacement_mm, case.case_id).metrics
+        rows.append(f"{case.clearance_mm:g},{case.amplitude_n:g},{m.eta:.6g}")
+    (tmp_path / "eta.csv").write_text("\n".join(rows) + "\n")
+    d = diagnose(spec, read_eta_table(tmp_path / "eta.csv"), FAST)
+    assert d.verdict == "indistinguishable", d.text()
+    assert {"frame_compliance", "tangential_compliance"} <= set(d.effects), d.text()
+    assert "measure the loop" in d.separating_test, d.text()
 
 
 def test_held_out_folds_keep_every_clearance_in_training():
