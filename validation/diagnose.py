@@ -12,7 +12,8 @@ Workflow (``diagnose``):
 2. **Baseline**: χ²₀ of the model file as it is (μ is taken from the model file, i.e.
    calibrated beforehand; it is not refitted here).
 3. **Per candidate** (every registry effect not already in the model, applicable to all
-   cases — ``interference`` needs Δr = 0): the model's own post-only effects (no cycle
+   cases — ``interference`` and ``face_friction`` need Δr = 0, see their
+   ``zero_clearance_reason``): the model's own post-only effects (no cycle
    needed) are re-tuned with it (``_retuned_features``), and its one parameter is fitted on a log grid
    (``grid_points`` values over ``grid_decades`` decades below its upper bound, features
    interpolated linearly in the parameter between grid points, scanned densely), then
@@ -676,8 +677,9 @@ def diagnose(
     for name in REGISTRY:
         if name in spec.effects:
             skipped[name] = "already in the model"
-        elif name == "interference" and any(p[0] > 0 for p in meas.points):
-            skipped[name] = "needs Δr = 0 at every case (an interference is a negative clearance)"
+        elif REGISTRY[name].zero_clearance_reason and any(p[0] > 0 for p in meas.points):
+            why = REGISTRY[name].zero_clearance_reason
+            skipped[name] = f"needs Δr = 0 at every case ({why})"
         else:
             names.append(name)
     fits = sorted(

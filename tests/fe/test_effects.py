@@ -6,6 +6,7 @@ the slow test at the end (40 increments per stage).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import re
 
@@ -17,6 +18,7 @@ from cad.general import GeneralHingeParams, make_general_hinge
 from fe.cycle import CycleSettings, configurations, run_cycle
 from fe.effects import (
     REGISTRY,
+    EffectContext,
     apply_effects,
     effect_ranges,
     post_process,
@@ -86,9 +88,9 @@ def test_zero_strength_changes_nothing(name, tight, base_tight):
 
 @pytest.mark.parametrize("name", list(REGISTRY), ids=list(REGISTRY))
 def test_effects_never_modify_their_inputs(name, tight):
-    _, configs = tight
+    system, configs = tight
     before = _fingerprint(configs)
-    out = apply_effects(configs, _strength(name))
+    out = apply_effects(configs, _strength(name), EffectContext(system, settings()))
     assert _fingerprint(configs) == before
     assert out is not configs
     assert out[1] is out[-1]  # Δr = 0: one shared configuration stays shared
@@ -122,7 +124,7 @@ def test_frame_compliance_shears_the_loop_exactly(tight, base_tight):
 )
 def test_interface_compliance_changes_only_the_diagonal(name, components, tight, base_tight):
     system, configs = tight
-    out = apply_effects(configs, _strength(name))
+    out = apply_effects(configs, _strength(name), EffectContext(system, settings()))
     W0, W1 = configs[1].W, out[1].W
     m = len(configs[1].geo.slave)
     dW = W1 - W0
@@ -188,12 +190,91 @@ def test_clearance_with_roughness_runs_and_reuses_the_condensation(loose):
     assert r.metrics()["free_play_mm"] == pytest.approx(0.4)
 
 
+@pytest.fixture(scope="module")
+def face_100(tight):
+    system, configs = tight
+    return run_cycle_with_effects(
+        system, 0.0, settings(100.0), _strength("face_friction"), configs=configs
+    )
+
+
+@pytest.fixture(scope="module")
+def face_400(tight):
+    system, configs = tight
+    return run_cycle_with_effects(
+        system, 0.0, settings(400.0), _strength("face_friction"), configs=configs
+    )
+
+
+def test_face_friction_clamp_equals_the_parameter(tight, face_400):
+    """At F = 0 (the prestressed zero's state) each face carries the clamp force."""
+    from fe.face_contact import face_normal_forces, unloaded_state
+
+    cond = face_400.result.configs[1]
+    state = unloaded_state(cond, EffectContext(tight[0], settings()).contact())
+    clamp = REGISTRY["face_friction"].params[0].default
+    for side, force in face_normal_forces(cond, np.asarray(state.p)).items():
+        assert force == pytest.approx(clamp, rel=0.01), side
+
+
+def test_face_friction_sticks_at_low_force_and_stiffens(face_100, tight):
+    system, configs = tight
+    base = run_cycle(system, 0.0, settings(100.0), configs=configs).metrics()
+    m = face_100.metrics()
+    assert m["secant_stiffness_N_per_mm"] > base["secant_stiffness_N_per_mm"]  # measured ×1.16
+    cond, state = face_100.result.configs[1], face_100.result.states[-1]
+    faces = np.asarray(cond.geo.pair) < 0
+    p = np.asarray(state.p)[faces]
+    stuck = np.linalg.norm(p[:, 1:], axis=1) < 0.2 * p[:, 0] * (1 - 1e-6)
+    assert stuck.any()  # some face points stick at +Fg
+
+
+def test_face_friction_closes_the_energy_balance_and_the_pin_floats(face_400, tight):
+    from fe.hinge_system import displacement, support_reaction
+
+    system, _ = tight
+    m = face_400.metrics()
+    assert m["energy_balance_rel_err"] < 1e-8
+    cond = face_400.result.configs[1]
+    for state in face_400.result.states:
+        p, a = np.asarray(state.p), np.asarray(state.alpha)
+        u = displacement(system, cond, p, a)
+        assert support_reaction(system, cond, p, u) < 1e-8 * FG
+
+
+def test_face_friction_breaks_homogeneity(face_100, face_400):
+    """The clamp does not scale with Fg: η now depends on the amplitude (baseline: constant)."""
+    assert face_400.metrics()["eta"] > 1.5 * face_100.metrics()["eta"]  # measured 1.86
+
+
+def test_face_friction_without_friction_makes_no_loop(tight, base_tight):
+    system, configs = tight
+    r = run_cycle_with_effects(
+        system,
+        0.0,
+        dataclasses.replace(settings(), mu=0.0),
+        _strength("face_friction"),
+        configs=configs,
+    )
+    assert all(i.friction_work == 0.0 for i in r.result.increments)
+    assert r.metrics()["eta"] < 0.1 * base_tight.metrics()["eta"]  # open/close work only
+
+
+def test_face_friction_refused_with_clearance(loose):
+    system, configs = loose
+    with pytest.raises(
+        ParameterError,
+        match=r"effects.face_friction.clamp_force_n = 300 N .* clearance_mm must be 0",
+    ):
+        run_cycle_with_effects(system, 0.1, settings(), _strength("face_friction"), configs=configs)
+
+
 @pytest.mark.parametrize(
     ("effects", "match"),
     [
         (
-            {"face_friction": {}},
-            r"unknown effect\(s\) \['face_friction'\]; known effects: frame_compliance",
+            {"bolt_preload": {}},
+            r"unknown effect\(s\) \['bolt_preload'\]; known effects: frame_compliance",
         ),
         (
             {"frame_compliance": {"stiffness": 1.0}},
@@ -268,7 +349,7 @@ def fingerprint_table(n=40):
         for amp in (100.0, 400.0):
             base = run_cycle(system, clearance, settings(amp, n), configs=configs).metrics()
             for name in REGISTRY:
-                if name == "interference" and clearance > 0:
+                if REGISTRY[name].zero_clearance_reason and clearance > 0:
                     continue
                 m = run_cycle_with_effects(
                     system, clearance, settings(amp, n), _strength(name), configs=configs
