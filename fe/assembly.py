@@ -427,7 +427,7 @@ def inverse_block(
     K_ff: sp.spmatrix | sp.sparray,
     idx: npt.ArrayLike,
     *,
-    factor: Factorization | None = None,
+    factor: Factorization | Callable[[], Factorization] | None = None,
     block_rhs: int = 128,
     backend: LinearSolverBackend = LinearSolverBackend.AUTO,
 ) -> FloatArray:
@@ -444,7 +444,8 @@ def inverse_block(
     Args:
         K_ff: Symmetric positive definite matrix, shape (n, n), float64.
         idx: Distinct DOF indices, shape (b,), in any order; the result follows it.
-        factor: A factorisation of K_ff to reuse on the fallback path.
+        factor: A factorisation of K_ff to reuse on the fallback path, or a callable
+            returning one (called only on that path, so it can be made lazily).
         block_rhs: Right-hand sides per block solve on the fallback path.
         backend: AUTO or PARDISO: the Schur complement (PARDISO required); SCIPY: block
             solves (with ``factor``, whatever its backend).
@@ -468,7 +469,8 @@ def inverse_block(
     if backend is LinearSolverBackend.PARDISO and lib is None:
         raise ParameterError("backend PARDISO requested but pypardiso is not installed")
     if lib is None or b.size == n:
-        f = factor if factor is not None else Factorization(A)
+        f = factor() if callable(factor) else factor
+        f = Factorization(A) if f is None else f
         out = np.empty((b.size, b.size))
         for j in range(0, b.size, block_rhs):
             cols = b[j : j + block_rhs]
