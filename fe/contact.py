@@ -68,15 +68,17 @@ Example:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from enum import Enum
 from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ConvergenceError, ParameterError, check_range
+from fe.contact_krylov import KrylovOptions, Workspace, krylov_step, workspace_for
 from fe.contact_law import ContactStatus
-from fe.contact_newton import Iterate, Problem, Step, evaluate, newton_step
+from fe.contact_newton import Factor, Iterate, Problem, Step, evaluate, newton_step
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -88,9 +90,25 @@ __all__ = [
     "ContactState",
     "ContactStatus",
     "IncrementResult",
+    "KrylovOptions",
+    "LinearSolver",
     "complementarity",
     "solve_increment",
 ]
+
+
+class LinearSolver(Enum):
+    """How each Newton direction is computed (the converged solution is the same).
+
+    Attributes:
+        LU: Form and LU-factorise the reduced Jacobian, with chord steps (``chord_rate``).
+        KRYLOV: GMRES on the exact reduced system, preconditioned by an earlier LU
+            updated to the new active set (:mod:`fe.contact_krylov`); the LU is kept
+            between increments on the same ``W`` and refactorised only when needed.
+    """
+
+    LU = "lu"
+    KRYLOV = "krylov"
 
 
 @dataclass(frozen=True)
@@ -112,6 +130,9 @@ class ContactSettings:
         rigid_rcond: Rigid directions whose singular value in the k×k Schur complement
             ``Gᵀ J⁻¹ G`` is below ``rigid_rcond · max_j |G_j|² / mean(diag W)`` are
             treated as undetermined (they get no component of ``α``).
+        linear_solver: How the Newton directions are computed (``chord_rate`` applies
+            to ``LinearSolver.LU`` only).
+        krylov: Tuning of ``LinearSolver.KRYLOV``.
     """
 
     mu: float = 0.0
@@ -123,6 +144,8 @@ class ContactSettings:
     min_step: float = 1e-4
     chord_rate: float = 0.1
     rigid_rcond: float = 1e-10
+    linear_solver: LinearSolver = LinearSolver.KRYLOV
+    krylov: KrylovOptions = field(default_factory=KrylovOptions)
 
     def __post_init__(self) -> None:
         check_range("mu", self.mu, 0.0, float("inf"))
@@ -204,7 +227,8 @@ class IncrementResult:
         normal_work: ``-½ (p_n,prev + p_n) Δw_n``, shape (m,), float64 [N·mm].
         dissipation: ``-p_t·Δw_t >= 0`` (backward Euler), shape (m,), float64 [N·mm].
         rescues: How many rescues (predictor or ``r`` change) were needed.
-        factorizations: LU factorisations done (iterations minus chord steps).
+        factorizations: LU factorisations done (iterations minus chord and Krylov steps).
+        linear_iterations: GMRES iterations done (``LinearSolver.KRYLOV``).
     """
 
     state: ContactState
@@ -218,6 +242,7 @@ class IncrementResult:
     dissipation: FloatArray
     rescues: int
     factorizations: int
+    linear_iterations: int = 0
 
 
 def _validate(
@@ -322,6 +347,9 @@ def solve_increment(
     it = evaluate(prob, p0, a0, r)
     history, rescues, n_factor = [it.rho], 0, 0
     n_iter, factor = 0, None
+    krylov = settings.linear_solver is LinearSolver.KRYLOV
+    ws = workspace_for(prob.W) if krylov else None
+    gmres_before = 0 if ws is None else ws.gmres_iterations
     while it.rho > settings.tol:
         if n_iter == settings.max_iter:
             partial = ContactState(it.p, it.w, it.law.status, it.alpha)
@@ -333,22 +361,56 @@ def solve_increment(
                 partial=partial,
             )
         n_iter += 1
-        step = newton_step(prob, it, r, cut, reuse=factor)
-        new = None if step is None else _line_search(prob, it, step, r, settings)
-        if step is not None and step.reused and new is None:
-            step = newton_step(prob, it, r, cut)  # the stale matrix was not good enough
-            new = None if step is None else _line_search(prob, it, step, r, settings)
-        n_factor += int(step is not None and not step.reused)
+        step, new = _direction(prob, it, r, cut, settings, factor, ws)
+        n_factor += 0 if step is None else step.factorizations
         if new is None:
             rescued = _rescue(prob, it, r, r_base, cut, rescues)
             rescues += 1
             r, new, factor = rescued.law_r, rescued.iterate, None
         elif step is not None:
             fast = new.rho <= settings.chord_rate * it.rho
-            factor = step.factor if fast and settings.chord_rate > 0.0 else None
+            factor = step.step.factor if fast and settings.chord_rate > 0.0 else None
         it = new
         history.append(it.rho)
-    return _result(prob, state_prev, it, n_iter, history, rescues, n_factor)
+    n_gmres = 0 if ws is None else ws.gmres_iterations - gmres_before
+    return _result(prob, state_prev, it, n_iter, history, rescues, n_factor, n_gmres)
+
+
+class _Direction(NamedTuple):
+    step: Step
+    factorizations: int
+
+
+def _direction(
+    prob: Problem,
+    it: Iterate,
+    r: FloatArray,
+    cut: float,
+    settings: ContactSettings,
+    factor: Factor | None,
+    ws: Workspace | None,
+) -> tuple[_Direction | None, Iterate | None]:
+    """Newton direction and line search; a reused matrix that fails is replaced once.
+
+    Returns the direction (None if the matrix was singular) with the number of LU
+    factorisations it took, and the accepted iterate (None: the line search failed).
+    """
+    if ws is None:
+        step = newton_step(prob, it, r, cut, reuse=factor)
+    else:
+        step = krylov_step(prob, it, r, cut, ws, settings.krylov)
+    new = None if step is None else _line_search(prob, it, step, r, settings)
+    if step is None or not step.reused or new is not None:
+        return (None if step is None else _Direction(step, int(not step.reused))), new
+    # The stale matrix (chord step or preconditioner) was not good enough: refactorise.
+    if ws is None:
+        retry = newton_step(prob, it, r, cut)
+    else:
+        ws.refresh = True
+        retry = krylov_step(prob, it, r, cut, ws, settings.krylov)
+    if retry is None:
+        return None, None
+    return _Direction(retry, 1), _line_search(prob, it, retry, r, settings)
 
 
 class _Rescued(NamedTuple):
@@ -412,6 +474,7 @@ def _result(
     history: list[float],
     rescues: int,
     n_factor: int,
+    n_gmres: int,
 ) -> IncrementResult:
     status = it.law.status
     dw = it.w - prev.w
@@ -431,6 +494,7 @@ def _result(
         dissipation=dissipation,
         rescues=rescues,
         factorizations=n_factor,
+        linear_iterations=n_gmres,
     )
 
 

@@ -135,6 +135,45 @@ class Step(NamedTuple):
     reused: bool
 
 
+class Linear(NamedTuple):
+    """The reduced generalised-Newton system of one iterate (see :func:`newton_step`).
+
+    The step is ``dp = T dq + s`` with ``dq`` (n_q,) and rigid amplitudes ``a`` (k,)
+    solving ``J dq + Jα a = b, H dq = h`` where ``J = R W T + diag(d)``.
+
+    Attributes:
+        closed: Closed (or force-closed) points, shape (c,), int64.
+        keep: Kept slots of the closed points, shape (c, 3), bool.
+        kind: Per closed point 0 stick, 1 slip, 2 frictionless, shape (c,), int8.
+        u: Slip direction per closed point (zero unless slipping), shape (c, 2).
+        t_loc: Per closed point the columns of T (slot → force components), (c, 3, 3).
+        T: Slot-to-force map, shape (3m, n_q), sparse.
+        R: Row map, shape (n_q, 3m), sparse.
+        d: Extra diagonal ``(1-κ)/r`` on slip slots, shape (n_q,), float64 [mm/N].
+        s: Shift of the step, shape (m, 3), float64 [N].
+        b: Right-hand side, shape (n_q,), float64 [mm].
+        Jalpha: ``R G``, shape (n_q, k), float64.
+        H: ``(T.T G).T``, shape (k, n_q), float64.
+        h: Equilibrium right-hand side, shape (k,), float64 [N].
+        keys: Global slot ``3 i + slot`` of every reduced unknown, shape (n_q,), int64.
+    """
+
+    closed: npt.NDArray[np.int64]
+    keep: npt.NDArray[np.bool_]
+    kind: npt.NDArray[np.int8]
+    u: FloatArray
+    t_loc: FloatArray
+    T: sp.csr_array
+    R: sp.csr_array
+    d: FloatArray
+    s: FloatArray
+    b: FloatArray
+    Jalpha: FloatArray
+    H: FloatArray
+    h: FloatArray
+    keys: npt.NDArray[np.int64]
+
+
 def newton_step(
     prob: Problem,
     it: Iterate,
@@ -144,11 +183,43 @@ def newton_step(
     force_closed: npt.NDArray[np.bool_] | None = None,
     reuse: Factor | None = None,
 ) -> Step | None:
-    """Solve the reduced generalised-Newton system; None if it is singular.
+    """Solve the reduced generalised-Newton system by dense LU; None if it is singular.
 
     If ``reuse`` has the same unknown layout as this iterate, its stale factors replace
     the Jacobian (a chord step: exact residual, approximate matrix, no factorisation);
-    the caller decides when that is good enough.
+    the caller decides when that is good enough. The system is that of :func:`linearise`.
+
+    Args:
+        prob: Increment data.
+        it: Current iterate (its trial status defines the active sets).
+        r: Augmentation per point, shape (m,), float64 [N/mm].
+        cut: Absolute singular-value cut of the rigid-body Schur complement.
+        force_closed: Points to close if open, shape (m,), bool (default none).
+        reuse: Factors of an earlier step to reuse when the layout matches.
+
+    Returns:
+        The full Newton step, or None if the reduced matrix is numerically singular.
+    """
+    lin = linearise(prob, it, r, force_closed)
+    reused = reuse is not None and np.array_equal(reuse.keys, lin.keys)
+    if reuse is not None and reused:
+        factor: Factor | None = reuse
+    else:
+        all_points = np.arange(len(it.p), dtype=np.int64)
+        factor = factor_jacobian(form_jacobian(prob.W, all_points, lin), lin.keys)
+    if factor is None:
+        return None
+    dq, alpha_new = solve_bordered(factor, lin.Jalpha, lin.H, lin.b, lin.h, cut)
+    return Step(lin.s + (lin.T @ dq).reshape(-1, 3), alpha_new, factor, reused)
+
+
+def linearise(
+    prob: Problem,
+    it: Iterate,
+    r: FloatArray,
+    force_closed: npt.NDArray[np.bool_] | None = None,
+) -> Linear:
+    """Build the reduced generalised-Newton system of an iterate (the matrix not formed).
 
     Open points flagged in ``force_closed`` are treated as closed and frictionless (a
     bilateral predictor that lets a floating body that touches nothing find contact).
@@ -163,12 +234,10 @@ def newton_step(
         prob: Increment data.
         it: Current iterate (its trial status defines the active sets).
         r: Augmentation per point, shape (m,), float64 [N/mm].
-        cut: Absolute singular-value cut of the rigid-body Schur complement.
         force_closed: Points to close if open, shape (m,), bool (default none).
-        reuse: Factors of an earlier step to reuse when the layout matches.
 
     Returns:
-        The full Newton step, or None if the reduced matrix is numerically singular.
+        The reduced system.
     """
     status = it.law.status
     forced = status == ContactStatus.OPEN
@@ -204,25 +273,43 @@ def newton_step(
     own = -it.g[closed]
     own[is_slip, 1] = -np.sum(it.C[sl, 1:] * v_s, axis=1) / r[sl]
     Ws = prob.W @ s.ravel()  # (3m,)
-    b = own[keep] - R @ Ws
     Jalpha = R @ prob.G  # (n_q, k)
+    b = own[keep] - R @ Ws + Jalpha @ it.alpha
     H = (T.T @ prob.G).T  # (k, n_q)
-    b = b + Jalpha @ it.alpha
     h = prob.e - prob.G.T @ (it.p + s).ravel()
     point, slot = np.nonzero(keep)
+    q_slip = (np.cumsum(keep.ravel()) - 1).reshape(-1, 3)[is_slip, 1]
+    d = np.zeros(len(point))
+    d[q_slip] = (1.0 - k_s) / r[sl]
+    kind = np.where(is_slip, 1, np.where(is_free, 2, 0)).astype(np.int8)
+    u_kind = np.where(is_slip[:, None], u_c, 0.0)
     keys = 3 * closed[point] + slot
-    reused = reuse is not None and np.array_equal(reuse.keys, keys)
-    if reuse is not None and reused:
-        factor: Factor | None = reuse
+    return Linear(closed, keep, kind, u_kind, t_loc, T, R, d, s, b, Jalpha, H, h, keys)
+
+
+def form_jacobian(W_block: FloatArray, block: npt.NDArray[np.int64], lin: Linear) -> FloatArray:
+    """Form ``J = R W T + diag(d)`` densely, shape (n_q, n_q), C-ordered.
+
+    Args:
+        W_block: ``W`` restricted to the DOFs of the points ``block`` (rows and columns
+            node-major in ``block`` order), shape (3 len(block), 3 len(block)) [mm/N];
+            ``W`` itself when ``block`` is every point.
+        block: Sorted point indices, shape (n_b,), int64; a superset of ``lin.closed``.
+        lin: The reduced system.
+
+    Returns:
+        The reduced Jacobian.
+    """
+    if len(block) * 3 == lin.R.shape[1]:
+        A, cols = lin.R @ W_block, lin.closed  # (n_q, 3m)
     else:
-        J = _columns_times_t(R @ prob.W, closed, keep, is_slip, prob.mu * u_s, v_s)
-        q_slip = (np.cumsum(keep.ravel()) - 1).reshape(-1, 3)[is_slip, 1]
-        J[q_slip, q_slip] += (1.0 - k_s) / r[sl]
-        factor = _factor(J, keys)
-    if factor is None:
-        return None
-    dq, alpha_new = _solve_bordered(factor, Jalpha, H, b, h, cut)
-    return Step(s + (T @ dq).reshape(-1, 3), alpha_new, factor, reused)
+        dofs = (3 * block[:, None] + np.arange(3)).ravel()
+        A, cols = lin.R[:, dofs] @ W_block, np.searchsorted(block, lin.closed)
+    is_slip = lin.kind == 1
+    mu_u, v = lin.t_loc[is_slip, 1:, 0], lin.t_loc[is_slip, 1:, 1]
+    J = _columns_times_t(np.ascontiguousarray(A), cols, lin.keep, is_slip, mu_u, v)
+    J[np.diag_indices_from(J)] += lin.d
+    return J
 
 
 def _columns_times_t(
@@ -277,7 +364,7 @@ def _slot_operators(
     return T, R
 
 
-def _factor(J: FloatArray, keys: npt.NDArray[np.int64]) -> Factor | None:
+def factor_jacobian(J: FloatArray, keys: npt.NDArray[np.int64]) -> Factor | None:
     """LU-factor ``J`` (destroyed); None if it is numerically singular."""
     if J.shape[0] == 0:
         return Factor(keys, (np.zeros((0, 0)), np.zeros(0, dtype=np.int32)))
@@ -294,7 +381,7 @@ def _factor(J: FloatArray, keys: npt.NDArray[np.int64]) -> Factor | None:
     return Factor(keys, lu)
 
 
-def _solve_bordered(
+def solve_bordered(
     factor: Factor,
     Jalpha: FloatArray,
     H: FloatArray,

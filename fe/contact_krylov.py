@@ -1,0 +1,435 @@
+"""Newton directions by GMRES, preconditioned by an earlier LU updated to the new layout.
+
+Internal to :mod:`fe.contact` (notation of :mod:`fe.contact_newton`). The reduced
+Jacobian ``J = R W T + diag(d)`` changes in every Newton iteration, but mostly a little:
+stick blocks are entries of ``W``, slip rows and columns turn with the slip direction,
+and a few points change status. So the LU of an earlier ``J₀`` (same ``W``) is kept as
+a *base* and turned into a preconditioner ``M`` of the new system that is exact on every
+row and column of a point whose status (or slip direction, beyond ``turn_cos``) changed:
+
+* unknowns are split into ``S`` (points with the same status in both layouts), ``N``
+  (the other unknowns of the new layout) and ``O`` (the other unknowns of ``J₀``);
+* ``J₀,SS⁻¹`` follows from ``J₀⁻¹`` by a Schur complement on ``O``:
+  ``J₀,SS⁻¹ y = x_S - Z_S (Z_O)⁻¹ x_O`` with ``x = J₀⁻¹ [y; 0]`` and ``Z = J₀⁻¹ E_O``;
+* ``M = [[J₀,SS, J_SN], [J_NS, J_NN]]`` is inverted by a Schur complement on ``N``;
+* the rigid amplitudes are bordered on as in :func:`fe.contact_newton.solve_bordered`.
+
+The setup costs ``|N| + |O| + k`` triangular solves; each GMRES iteration one solve with
+the base and one product with ``W`` on the closed points' DOFs. ``M`` differs from the
+exact matrix only by the turn of the slip directions of ``S``, so right-preconditioned
+GMRES (which minimises the true residual) converges in a few iterations. When the layout
+changed too much, GMRES stalls, or the rigid Schur complement is rank deficient (where
+the exact path's minimum-norm ``α`` is wanted), the exact ``J`` is formed and factorised
+and becomes the new base. The preconditioner only changes how fast the direction is
+found: every iterate is still accepted on the exact residual ``ρ``.
+"""
+
+from __future__ import annotations
+
+import threading
+import weakref
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from fe.contact_newton import (
+    Factor,
+    Iterate,
+    Linear,
+    Problem,
+    Step,
+    factor_jacobian,
+    form_jacobian,
+    linearise,
+    solve_bordered,
+)
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class KrylovOptions:
+    """Tuning of the Krylov path (algorithmic only: the solution does not depend on it).
+
+    Attributes:
+        max_update: Refactorise instead of updating the base when ``|N| + |O|`` exceeds
+            this fraction of the number of unknowns.
+        max_iter: GMRES iterations before giving up and refactorising.
+        refresh_iter: Refactorise at the next step after a solve that needed more
+            GMRES iterations than this.
+        turn_cos: A slipping point whose slip direction turned so that ``u·u₀`` is
+            below this counts as changed (its rows and columns become exact).
+        forcing: Relative GMRES tolerance is ``min(forcing, ρ)`` (inexact Newton).
+        min_size: Smaller systems are always factorised (dense LU is cheap there).
+    """
+
+    max_update: float = 0.15
+    max_iter: int = 40
+    refresh_iter: int = 12
+    turn_cos: float = 0.9
+    forcing: float = 1e-3
+    min_size: int = 0
+
+
+class Base(NamedTuple):
+    """An LU of an earlier reduced Jacobian and the layout it belongs to.
+
+    Attributes:
+        factor: The LU factors (of ``J₀ᵀ``) and the unknown keys, shape (n₀,).
+        closed: Closed points of that layout, shape (c₀,), int64.
+        kind: 0 stick, 1 slip, 2 frictionless per closed point, shape (c₀,), int8.
+        u: Slip direction per closed point, shape (c₀, 2), float64.
+    """
+
+    factor: Factor
+    closed: IntArray
+    kind: npt.NDArray[np.int8]
+    u: FloatArray
+
+
+@dataclass
+class Workspace:
+    """Mutable per-``W`` cache of the Krylov path (preconditioner data only).
+
+    Attributes:
+        base: The LU kept as preconditioner (None until the first factorisation).
+        refresh: Refactorise at the next step.
+        block: Points whose DOFs ``W_block`` holds, shape (n_b,) (None: none yet).
+        W_block: ``W`` on those DOFs (rebuilt per increment, never trusted across calls).
+        gmres_iterations: GMRES iterations done (a counter for reports).
+    """
+
+    base: Base | None = None
+    refresh: bool = False
+    block: IntArray | None = None
+    W_block: FloatArray | None = field(default=None, repr=False)
+    gmres_iterations: int = 0
+
+
+_WORKSPACES: dict[tuple[int, int], tuple[weakref.ref[FloatArray], Workspace]] = {}
+_LOCK = threading.Lock()
+
+
+def workspace_for(W: FloatArray) -> Workspace:
+    """Return this thread's workspace for ``W`` (kept while ``W`` lives).
+
+    The base LU carries over between increments on the same ``W``; being only a
+    preconditioner, a stale or foreign base can cost iterations but not accuracy.
+    """
+    key = (id(W), threading.get_ident())
+    with _LOCK:
+        entry = _WORKSPACES.get(key)
+        if entry is not None and entry[0]() is W:
+            ws = entry[1]
+        else:
+            ws = Workspace()
+            _WORKSPACES[key] = (weakref.ref(W, lambda _r: _WORKSPACES.pop(key, None)), ws)
+    ws.block, ws.W_block = None, None  # W may have changed in place since the last call
+    return ws
+
+
+class _Operators(NamedTuple):
+    """``J`` restricted to the closed points' DOFs: ``J x = R_b (W_b (T_b x)) + d x``."""
+
+    block: IntArray
+    W_b: FloatArray
+    R_b: sp.csr_array
+    T_b: sp.csr_array
+    d: FloatArray
+
+
+def _operators(prob: Problem, lin: Linear, ws: Workspace) -> _Operators:
+    m = len(prob.w_free)
+    if ws.block is None or not np.all(np.isin(lin.closed, ws.block)):
+        if len(lin.closed) > 0.8 * m:  # gathering would copy nearly all of W
+            ws.block, ws.W_block = np.arange(m, dtype=np.int64), prob.W
+        else:
+            dofs = (3 * lin.closed[:, None] + np.arange(3)).ravel()
+            ws.block, ws.W_block = lin.closed, prob.W[np.ix_(dofs, dofs)]
+    block, W_b = ws.block, prob.W if ws.W_block is None else ws.W_block
+    dofs = (3 * block[:, None] + np.arange(3)).ravel()
+    if len(dofs) == prob.W.shape[0]:
+        return _Operators(block, W_b, lin.R, lin.T, lin.d)
+    return _Operators(block, W_b, lin.R[:, dofs], lin.T[dofs, :], lin.d)
+
+
+def _apply(ops: _Operators, X: FloatArray) -> FloatArray:
+    """``J X`` for X of shape (n_q,) or (n_q, p)."""
+    out: FloatArray = ops.R_b @ (ops.W_b @ (ops.T_b @ X))
+    return out + (ops.d * X.T).T
+
+
+def _rows(ops: _Operators, q: IntArray) -> FloatArray:
+    """Rows ``q`` of ``J``, shape (len(q), n_q)."""
+    R_q = ops.R_b[q]
+    A = (ops.W_b @ R_q.T.toarray()).T  # W_b symmetric: R_q W_b = (W_b R_qᵀ)ᵀ
+    out: FloatArray = (ops.T_b.T @ A.T).T
+    out[np.arange(len(q)), q] += ops.d[q]
+    return out
+
+
+class _Precond(NamedTuple):
+    """Data of ``M⁻¹`` (see the module docstring)."""
+
+    lu: tuple[FloatArray, npt.NDArray[np.int32]]
+    n0: int
+    qS_new: IntArray
+    qS_old: IntArray
+    qN: IntArray
+    qO: IntArray
+    Z_S: FloatArray
+    Zoo: tuple[FloatArray, npt.NDArray[np.int32]] | None
+    J_NS: FloatArray
+    V: FloatArray
+    sigma: tuple[FloatArray, npt.NDArray[np.int32]] | None
+
+
+def _solve_ss(pc: _Precond, Y_S: FloatArray) -> FloatArray:
+    """``J₀,SS⁻¹ Y_S`` for Y_S of shape (n_S, p)."""
+    Y = np.zeros((pc.n0, Y_S.shape[1]))
+    Y[pc.qS_old] = Y_S
+    X: FloatArray = sla.lu_solve(pc.lu, Y, trans=1, check_finite=False)
+    if pc.Zoo is None:
+        return X[pc.qS_old]
+    out: FloatArray = X[pc.qS_old] - pc.Z_S @ sla.lu_solve(
+        pc.Zoo, X[pc.qO], trans=1, check_finite=False
+    )
+    return out
+
+
+def _solve_m(pc: _Precond, Y: FloatArray) -> FloatArray:
+    """``M⁻¹ Y`` for Y of shape (n_q, p)."""
+    t = _solve_ss(pc, Y[pc.qS_new])
+    X = np.empty_like(Y)
+    if pc.sigma is None:
+        X[pc.qS_new] = t
+        return X
+    x_N = sla.lu_solve(pc.sigma, Y[pc.qN] - pc.J_NS @ t, trans=1, check_finite=False)
+    X[pc.qN] = x_N
+    X[pc.qS_new] = t - pc.V @ x_N
+    return X
+
+
+def _lu_or_none(A: FloatArray) -> tuple[FloatArray, npt.NDArray[np.int32]] | None:
+    """LU of ``Aᵀ`` (solve with ``trans=1``), None if A is empty; raises if singular."""
+    if A.size == 0:
+        return None
+    f = factor_jacobian(np.ascontiguousarray(A), np.zeros(0, dtype=np.int64))
+    if f is None:
+        raise np.linalg.LinAlgError("singular update")
+    return (f.lu[0], f.lu[1])
+
+
+def _precondition(base: Base, lin: Linear, ops: _Operators, opts: KrylovOptions) -> _Precond | None:
+    """Set up ``M⁻¹`` from the base; None if the layout changed too much or it is singular."""
+    common, ia, ib = np.intersect1d(base.closed, lin.closed, return_indices=True)
+    same = base.kind[ia] == lin.kind[ib]
+    turn = np.sum(base.u[ia] * lin.u[ib], axis=1)
+    same &= (lin.kind[ib] != 1) | (turn >= opts.turn_cos)
+    keep_pts = common[same]
+    in_new = np.isin(lin.keys // 3, keep_pts)
+    in_old = np.isin(base.factor.keys // 3, keep_pts)
+    qS_new, qN = np.flatnonzero(in_new), np.flatnonzero(~in_new)
+    qS_old, qO = np.flatnonzero(in_old), np.flatnonzero(~in_old)
+    n = len(lin.keys)
+    if len(qN) + len(qO) > opts.max_update * n or len(qS_new) != len(qS_old):
+        return None
+    lu = base.factor.lu
+    n0 = len(base.factor.keys)
+    try:
+        if len(qO):
+            E = np.zeros((n0, len(qO)))
+            E[qO, np.arange(len(qO))] = 1.0
+            Z = sla.lu_solve(lu, E, trans=1, check_finite=False)
+            pc = _Precond(lu, n0, qS_new, qS_old, qN, qO, Z[qS_old], _lu_or_none(Z[qO]), *_empty())
+        else:
+            pc = _Precond(lu, n0, qS_new, qS_old, qN, qO, np.zeros((0, 0)), None, *_empty())
+        if len(qN):
+            J_N = _rows(ops, qN)  # (|N|, n)
+            E = np.zeros((n, len(qN)))
+            E[qN, np.arange(len(qN))] = 1.0
+            J_colN = _apply(ops, E)  # (n, |N|)
+            V = _solve_ss(pc, J_colN[qS_new])
+            J_NS = J_N[:, qS_new]
+            sigma = _lu_or_none(J_colN[qN] - J_NS @ V)
+            pc = pc._replace(J_NS=J_NS, V=V, sigma=sigma)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    return pc
+
+
+def _empty() -> tuple[FloatArray, FloatArray, None]:
+    return np.zeros((0, 0)), np.zeros((0, 0)), None
+
+
+class _Bordered(NamedTuple):
+    """Right preconditioner of ``[[J, Jα], [H/r̄, 0]]`` built on ``M⁻¹``."""
+
+    pc: _Precond
+    M_alpha: FloatArray
+    H: FloatArray
+    U: FloatArray
+    inv_sv: FloatArray
+    Vt: FloatArray
+    r_bar: float
+
+
+def _bordered(pc: _Precond, lin: Linear, cut: float, r_bar: float) -> _Bordered | None:
+    """Border ``M⁻¹`` with the rigid amplitudes; None if the Schur complement is deficient."""
+    k = lin.Jalpha.shape[1]
+    if k == 0:
+        z = np.zeros((0, 0))
+        return _Bordered(pc, np.zeros((len(lin.keys), 0)), lin.H, z, np.zeros(0), z, r_bar)
+    M_alpha = _solve_m(pc, lin.Jalpha)
+    U, sv, Vt = np.linalg.svd(lin.H @ M_alpha)  # (k, k)
+    if not np.all(sv > max(cut, float(sv[0]) * np.finfo(float).eps * k)):
+        return None  # undetermined rigid directions: the exact path gives the min-norm α
+    return _Bordered(pc, M_alpha, lin.H, U, 1.0 / sv, Vt, r_bar)
+
+
+def _apply_p(bp: _Bordered, z: FloatArray) -> FloatArray:
+    """Approximate solution of ``[[J, Jα], [H/r̄, 0]] (x, a) = z``, z of shape (n_q + k,)."""
+    n = bp.M_alpha.shape[0]
+    t = _solve_m(bp.pc, z[:n, None])[:, 0]
+    if bp.M_alpha.shape[1] == 0:
+        return t
+    a = bp.Vt.T @ (bp.inv_sv * (bp.U.T @ (bp.H @ t - bp.r_bar * z[n:])))
+    return np.concatenate([t - bp.M_alpha @ a, a])
+
+
+def _apply_k(ops: _Operators, lin: Linear, r_bar: float, z: FloatArray) -> FloatArray:
+    """``[[J, Jα], [H/r̄, 0]] z``, z of shape (n_q + k,)."""
+    n = len(lin.keys)
+    x, a = z[:n], z[n:]
+    top = _apply(ops, x) + lin.Jalpha @ a
+    return np.concatenate([top, (lin.H @ x) / r_bar])
+
+
+class _Gmres(NamedTuple):
+    z: FloatArray
+    iterations: int
+    converged: bool
+
+
+def gmres(
+    apply_a: Callable[[FloatArray], FloatArray],
+    apply_p: Callable[[FloatArray], FloatArray],
+    rhs: FloatArray,
+    rtol: float,
+    max_iter: int,
+) -> _Gmres:
+    """Right-preconditioned GMRES from zero (no restart): ``|A z - rhs| <= rtol |rhs|``.
+
+    Args:
+        apply_a: ``z ↦ A z`` on vectors of shape (n,).
+        apply_p: The preconditioner ``y ↦ P y ≈ A⁻¹ y`` on vectors of shape (n,).
+        rhs: Right-hand side, shape (n,).
+        rtol: Relative tolerance on the true (unpreconditioned) residual.
+        max_iter: Iteration cap.
+
+    Returns:
+        The solution, the iterations used, and whether ``rtol`` was reached.
+    """
+    beta = float(np.linalg.norm(rhs))
+    if beta == 0.0:
+        return _Gmres(np.zeros_like(rhs), 0, True)
+    n = len(rhs)
+    V = np.zeros((max_iter + 1, n))
+    Z = np.zeros((max_iter, n))
+    Hh = np.zeros((max_iter + 1, max_iter))
+    cs, sn = np.zeros(max_iter), np.zeros(max_iter)
+    g = np.zeros(max_iter + 1)
+    g[0] = beta
+    V[0] = rhs / beta
+    j = 0
+    for j in range(max_iter):
+        Z[j] = apply_p(V[j])
+        w = apply_a(Z[j])
+        h = V[: j + 1] @ w  # classical Gram–Schmidt, twice (as stable as modified)
+        w = w - h @ V[: j + 1]
+        h2 = V[: j + 1] @ w
+        w = w - h2 @ V[: j + 1]
+        Hh[: j + 1, j] = h + h2
+        h_next = float(np.linalg.norm(w))
+        Hh[j + 1, j] = h_next
+        if h_next > 0.0:
+            V[j + 1] = w / h_next
+        for i in range(j):  # earlier Givens rotations on the new column
+            hi, hj = Hh[i, j], Hh[i + 1, j]
+            Hh[i, j], Hh[i + 1, j] = cs[i] * hi + sn[i] * hj, -sn[i] * hi + cs[i] * hj
+        rad = float(np.hypot(Hh[j, j], Hh[j + 1, j]))
+        cs[j], sn[j] = (1.0, 0.0) if rad == 0.0 else (Hh[j, j] / rad, Hh[j + 1, j] / rad)
+        Hh[j, j], Hh[j + 1, j] = rad, 0.0
+        g[j + 1] = -sn[j] * g[j]
+        g[j] = cs[j] * g[j]
+        if abs(g[j + 1]) <= rtol * beta or h_next == 0.0:
+            break
+    k = j + 1
+    if np.any(np.diag(Hh[:k, :k]) == 0.0):
+        return _Gmres(np.zeros_like(rhs), k, False)
+    y = sla.solve_triangular(Hh[:k, :k], g[:k])
+    return _Gmres(y @ Z[:k], k, bool(abs(g[k]) <= rtol * beta))
+
+
+def krylov_step(
+    prob: Problem,
+    it: Iterate,
+    r: FloatArray,
+    cut: float,
+    ws: Workspace,
+    opts: KrylovOptions,
+) -> Step | None:
+    """Newton direction by GMRES on the exact reduced system, base LU as preconditioner.
+
+    Falls back to forming and factorising ``J`` (which becomes the new base) when there
+    is no usable base or GMRES does not reach ``min(opts.forcing, ρ)``. The returned
+    ``Step.reused`` is True when no factorisation was done.
+
+    Args:
+        prob: Increment data.
+        it: Current iterate.
+        r: Augmentation per point, shape (m,), float64 [N/mm].
+        cut: Absolute singular-value cut of the rigid-body Schur complement.
+        ws: The workspace of ``prob.W`` (base LU, cached ``W`` block); updated.
+        opts: Tuning.
+
+    Returns:
+        The Newton step, or None if the reduced matrix is numerically singular.
+    """
+    lin = linearise(prob, it, r)
+    n = len(lin.keys)
+    ops = _operators(prob, lin, ws)
+    r_bar = float(np.mean(r))
+    if ws.base is not None and not ws.refresh and n >= opts.min_size and n > 0:
+        pc = _precondition(ws.base, lin, ops, opts)
+        bp = None if pc is None else _bordered(pc, lin, cut, r_bar)
+        if bp is not None:
+            # Unknowns (dq, α_new - α): the right-hand side is then of the size of the
+            # Newton residual, so the relative tolerance is a forcing term.
+            rhs = np.concatenate([lin.b - lin.Jalpha @ it.alpha, lin.h / r_bar])
+            rtol = max(min(opts.forcing, it.rho), 1e-13)
+            sol = gmres(
+                lambda z: _apply_k(ops, lin, r_bar, z),
+                lambda z: _apply_p(bp, z),
+                rhs,
+                rtol,
+                opts.max_iter,
+            )
+            ws.gmres_iterations += sol.iterations
+            if sol.converged:
+                ws.refresh = sol.iterations > opts.refresh_iter
+                dq, alpha_new = sol.z[:n], it.alpha + sol.z[n:]
+                step = lin.s + (lin.T @ dq).reshape(-1, 3)
+                return Step(step, alpha_new, ws.base.factor, True)
+    factor = factor_jacobian(form_jacobian(ops.W_b, ops.block, lin), lin.keys)
+    if factor is None:
+        return None
+    ws.base, ws.refresh = Base(factor, lin.closed, lin.kind, lin.u), False
+    dq, alpha_new = solve_bordered(factor, lin.Jalpha, lin.H, lin.b, lin.h, cut)
+    return Step(lin.s + (lin.T @ dq).reshape(-1, 3), alpha_new, factor, False)

@@ -1,0 +1,149 @@
+"""The Krylov path of the contact Newton solver: same directions, same solutions as LU."""
+
+from __future__ import annotations
+
+import gc
+
+import numpy as np
+import pytest
+
+from fe import contact, contact_krylov, contact_newton
+from fe.contact import ContactSettings, ContactState, KrylovOptions, LinearSolver, solve_increment
+
+
+def random_W(m, seed, coupling=0.15):
+    """SPD, diagonally dominant Delassus-like operator (3m × 3m)."""
+    rng = np.random.default_rng(seed)
+    B = rng.normal(size=(3 * m, 3 * m))
+    W = coupling * B @ B.T / (3 * m) + np.diag(rng.uniform(1.0, 2.0, 3 * m))
+    return 0.5 * (W + W.T)
+
+
+def iterate(W, seed, mu=0.3, k=0):
+    """A frictional problem and an iterate with open, stick and slip points."""
+    m = W.shape[0] // 3
+    rng = np.random.default_rng(seed)
+    w_free = rng.normal(scale=0.5, size=(m, 3)) + np.array([-0.3, 0.0, 0.0])
+    prev_w = rng.normal(scale=0.2, size=(m, 3))
+    G = rng.normal(size=(3 * m, k))
+    prob = contact_newton.Problem(W, w_free, G, rng.normal(size=k), prev_w[:, 1:], mu)
+    r = 1.0 / np.diagonal(W).reshape(m, 3).mean(axis=1)
+    p = rng.normal(size=(m, 3)) + np.array([0.5, 0.0, 0.0])
+    it = contact_newton.evaluate(prob, p, rng.normal(size=k), r)
+    return prob, it, r
+
+
+def dense_j(prob, lin):
+    return contact_newton.form_jacobian(prob.W, np.arange(len(prob.w_free)), lin)
+
+
+def test_preconditioner_inverts_the_updated_matrix_exactly():
+    """M = J_new with its (same-status) S×S block taken from the base; M⁻¹ M = I."""
+    W = random_W(30, 1)
+    prob_a, it_a, r = iterate(W, 2)
+    prob_b, it_b, _ = iterate(W, 3)  # another iterate: many points change status
+    lin_a = contact_newton.linearise(prob_a, it_a, r)
+    lin_b = contact_newton.linearise(prob_b, it_b, r)
+    J_a, J_b = dense_j(prob_a, lin_a), dense_j(prob_b, lin_b)
+    factor = contact_newton.factor_jacobian(J_a.copy(), lin_a.keys)
+    base = contact_krylov.Base(factor, lin_a.closed, lin_a.kind, lin_a.u)
+    ws = contact_krylov.Workspace()
+    ops = contact_krylov._operators(prob_b, lin_b, ws)
+    opts = KrylovOptions(max_update=1.0, turn_cos=-1.0)
+    pc = contact_krylov._precondition(base, lin_b, ops, opts)
+    assert pc is not None
+    assert len(pc.qN) > 0
+    assert len(pc.qO) > 0
+    assert len(pc.qS_new) > 0
+    M = J_b.copy()
+    M[np.ix_(pc.qS_new, pc.qS_new)] = J_a[np.ix_(pc.qS_old, pc.qS_old)]
+    X = np.random.default_rng(4).normal(size=(len(lin_b.keys), 3))
+    np.testing.assert_allclose(contact_krylov._solve_m(pc, M @ X), X, atol=1e-9)
+    # Rows and columns of the changed unknowns are those of the exact matrix.
+    np.testing.assert_allclose(contact_krylov._rows(ops, pc.qN), J_b[pc.qN], atol=1e-13)
+
+
+def test_gmres_solves_a_nonsymmetric_system_to_its_tolerance():
+    rng = np.random.default_rng(0)
+    A = np.eye(40) * 4.0 + rng.normal(size=(40, 40))
+    b = rng.normal(size=40)
+    sol = contact_krylov.gmres(lambda z: A @ z, lambda z: z, b, 1e-12, 40)
+    assert sol.converged
+    np.testing.assert_allclose(sol.z, np.linalg.solve(A, b), rtol=1e-9)
+    exact = contact_krylov.gmres(lambda z: A @ z, lambda z: np.linalg.solve(A, z), b, 1e-12, 40)
+    assert exact.iterations == 1
+    stalled = contact_krylov.gmres(lambda z: A @ z, lambda z: z, b, 1e-14, 3)
+    assert not stalled.converged
+
+
+@pytest.mark.parametrize("k", [0, 3], ids=["no-rigid", "rigid"])
+def test_krylov_step_equals_the_lu_step(k):
+    W = random_W(25, 7)
+    prob_a, it_a, r = iterate(W, 8, k=k)
+    prob_b, it_b, _ = iterate(W, 9, k=k)
+    ws = contact_krylov.Workspace()
+    opts = KrylovOptions(max_update=1.0, forcing=1e-12, max_iter=200, turn_cos=-1.0)
+    first = contact_krylov.krylov_step(prob_a, it_a, r, 0.0, ws, opts)  # no base: factorises
+    assert first is not None
+    assert not first.reused
+    step = contact_krylov.krylov_step(prob_b, it_b, r, 0.0, ws, opts)  # GMRES on the base
+    ref = contact_newton.newton_step(prob_b, it_b, r, 0.0)
+    assert step is not None
+    assert ref is not None
+    assert step.reused
+    scale = np.max(np.abs(ref.dp))
+    np.testing.assert_allclose(step.dp, ref.dp, atol=1e-9 * scale)
+    a_scale = 1.0 + np.max(np.abs(ref.alpha_new), initial=0.0)
+    np.testing.assert_allclose(step.alpha_new, ref.alpha_new, atol=1e-9 * a_scale)
+
+
+def punch_history(settings, n=12):
+    """Floating punch (3 translations) on a random W, loaded normally then dragged back and forth."""
+    m = 40
+    W = random_W(m, 21, coupling=0.3)
+    G = np.zeros((3 * m, 3))
+    G[0::3, 0] = G[1::3, 1] = G[2::3, 2] = 1.0
+    rng = np.random.default_rng(22)
+    w_free = np.zeros((m, 3))
+    w_free[:, 0] = rng.uniform(0.0, 1.0, m)
+    state = ContactState.initial(m, 3)
+    out = []
+    for i, q in enumerate(np.sin(np.linspace(0.0, 2.0 * np.pi, n))):
+        e = np.array([10.0, 2.5 * q, 1.0 * q])
+        res = solve_increment(W, w_free, state, settings, G=G, e=e, increment=i)
+        out.append(res)
+        state = res.state
+    return out
+
+
+def test_krylov_path_gives_the_lu_solution_with_fewer_factorisations():
+    lu = punch_history(ContactSettings(mu=0.3, linear_solver=LinearSolver.LU, chord_rate=0.0))
+    kr = punch_history(ContactSettings(mu=0.3, linear_solver=LinearSolver.KRYLOV))
+    assert max(r.n_slip for r in lu) > 0
+    assert max(r.n_stick for r in lu) > 0
+    assert max(r.n_open for r in lu) > 0
+    for a, b in zip(lu, kr, strict=True):
+        np.testing.assert_allclose(b.state.p, a.state.p, atol=1e-9 * np.max(np.abs(a.state.p)))
+        np.testing.assert_allclose(
+            b.state.alpha, a.state.alpha, atol=1e-9 * np.max(np.abs(a.state.alpha))
+        )
+        np.testing.assert_array_equal(b.state.status, a.state.status)
+        assert b.residuals[-1] <= ContactSettings().tol
+    assert sum(r.linear_iterations for r in kr) > 0
+    assert sum(r.factorizations for r in kr) < sum(r.factorizations for r in lu)
+    assert sum(r.iterations for r in kr) <= 1.5 * sum(r.iterations for r in lu)
+
+
+def test_workspace_is_dropped_with_its_operator():
+    W = random_W(5, 3)
+    contact_krylov.workspace_for(W)
+    key = (id(W), __import__("threading").get_ident())
+    assert key in contact_krylov._WORKSPACES
+    del W
+    gc.collect()
+    assert key not in contact_krylov._WORKSPACES
+
+
+def test_default_is_the_krylov_path():
+    assert ContactSettings().linear_solver is LinearSolver.KRYLOV
+    assert contact.LinearSolver.LU.value == "lu"
