@@ -7,6 +7,14 @@ spherical gap profile. Load: normal preload P, then tangential Q: 0 → +Q → -
 Q = 0.8 μ P (partial slip with an annulus of slip). Run:
 
     .venv/bin/python benchmarks/bench_contact.py [--sizes 300 1000 1500] [--per-quarter 25]
+    .venv/bin/python benchmarks/bench_contact.py --hinge W.npz [--stage0 10 --stage1 4]
+
+Each case runs with the old path (``LinearSolver.LU``: dense LU per iteration, chord
+steps) and the new one (``LinearSolver.KRYLOV``) in the same process, and prints the
+ratio new/old. ``--hinge`` replays the first increments of a hinge cycle (400 N, μ 0.2)
+from an .npz with the condensed ``W``, ``G`` and ``w0`` of ``fe.cycle.configurations``
+(e.g. ``np.savez(path, W=c.W, G=c.G, w0=c.w0)``), to time refinement levels whose
+condensation takes minutes.
 
 On a shared or small machine set OPENBLAS_NUM_THREADS=1: the reduced systems
 (n_q ≈ 3 n_stick + 2 n_slip ≲ 2000 here) gain little from threads and lose a lot to
@@ -21,7 +29,7 @@ import tracemalloc
 
 import numpy as np
 
-from fe.contact import ContactSettings, ContactState, solve_increment
+from fe.contact import ContactSettings, ContactState, LinearSolver, solve_increment
 
 E_STAR_MPA = 110_000.0
 
@@ -44,7 +52,9 @@ def rigid_map(xy):
     return G
 
 
-def run(m_target: int, per_quarter: int, mu: float = 0.3, chord_rate: float = 0.1):
+def run(
+    m_target: int, per_quarter: int, solver: LinearSolver, mu: float = 0.3, chord_rate: float = 0.1
+):
     n_side = round(np.sqrt(m_target))
     spacing = 1.0 / n_side  # grid spans 1 mm
     xy, W = half_space_grid(n_side, spacing)
@@ -58,7 +68,7 @@ def run(m_target: int, per_quarter: int, mu: float = 0.3, chord_rate: float = 0.
     for a, b in [(0.0, 1.0), (1.0, -1.0), (-1.0, 1.0)]:
         n = per_quarter * round(abs(b - a))
         q_levels += [a + (b - a) * i / n for i in range(1, n + 1)]
-    settings = ContactSettings(mu=mu, chord_rate=chord_rate)
+    settings = ContactSettings(mu=mu, chord_rate=chord_rate, linear_solver=solver)
     state = ContactState.initial(m, 4)
     iters, n_lu, counts = 0, 0, None
     tracemalloc.start()
@@ -77,24 +87,72 @@ def run(m_target: int, per_quarter: int, mu: float = 0.3, chord_rate: float = 0.
     return m, len(q_levels), iters, n_lu, wall / len(q_levels), peak / 2**20, counts
 
 
+def run_hinge(path: str, n_stage0: int, n_stage1: int, solver: LinearSolver):
+    """Replay the first increments of stages 0 and 1 of the default cycle on a saved W."""
+    import types
+
+    from fe.cycle import _advance
+    from fe.protocol import CycleSettings, stage_targets
+
+    data = np.load(path)
+    cond = types.SimpleNamespace(W=np.ascontiguousarray(data["W"]), G=data["G"], w0=data["w0"])
+    cyc = CycleSettings(amplitude_n=400.0)
+    contact = ContactSettings(mu=cyc.mu, tol=cyc.tol, max_iter=cyc.max_iter, linear_solver=solver)
+    state = ContactState.initial(len(cond.w0), 7, w=cond.w0)
+    f_prev, iters, n_lu, n_inc, eta_proxy = 0.0, 0, 0, 0, 0.0
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    for stage, limit in zip(cyc.stages()[:2], (n_stage0, n_stage1), strict=True):
+        previous = None
+        for target in stage_targets(*stage, cyc.grading)[:limit]:
+            new, res = _advance(
+                cond, state, f_prev, float(target), contact, cyc, n_inc, dict, previous
+            )
+            iters += res.iterations
+            n_lu += res.factorizations
+            eta_proxy += float(res.friction_work.sum())
+            previous, state, f_prev = (f_prev, state), new, float(target)
+            n_inc += 1
+    wall = time.perf_counter() - t0
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    m = len(cond.w0)
+    return m, n_inc, iters, n_lu, wall, peak / 2**20, (float(state.alpha[6]), eta_proxy)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--sizes", type=int, nargs="+", default=[300, 1000, 1500])
     parser.add_argument("--per-quarter", type=int, default=25)
     parser.add_argument("--chord-rate", type=float, default=0.1)
+    parser.add_argument("--hinge", type=str, default=None, help=".npz with W, G, w0")
+    parser.add_argument("--stage0", type=int, default=10)
+    parser.add_argument("--stage1", type=int, default=4)
     args = parser.parse_args()
     print(
-        "   m  increments  iterations  it/incr  LU/incr  s/increment  peak MiB"
-        "  open/stick/slip at +Q"
+        "     m  path     increments  iterations  LU  wall s  peak MiB  new/old wall"
+        "  result (open/stick/slip at +Q, or δ_end mm and Σ friction work N·mm)"
     )
-    for m_target in args.sizes:
-        m, n_inc, iters, n_lu, per, peak, counts = run(
-            m_target, args.per_quarter, chord_rate=args.chord_rate
-        )
-        print(
-            f"{m:4d}  {n_inc:10d}  {iters:10d}  {iters / n_inc:7.2f}  {n_lu / n_inc:7.2f}"
-            f"  {per:11.4f}  {peak:8.1f}  {counts}"
-        )
+    cases = [("hinge", 0)] if args.hinge else [("grid", m) for m in args.sizes]
+    for kind, m_target in cases:
+        walls = {}
+        for solver in (LinearSolver.LU, LinearSolver.KRYLOV):
+            if kind == "hinge":
+                m, n_inc, iters, n_lu, wall, peak, out = run_hinge(
+                    args.hinge, args.stage0, args.stage1, solver
+                )
+            else:
+                m, n_inc, iters, n_lu, per, peak, out = run(
+                    m_target, args.per_quarter, solver, chord_rate=args.chord_rate
+                )
+                wall = per * n_inc
+            walls[solver] = wall
+            ratio = wall / walls[LinearSolver.LU]
+            print(
+                f"{m:6d}  {solver.name:7s}  {n_inc:10d}  {iters:10d}  {n_lu:3d}  {wall:6.1f}"
+                f"  {peak:8.1f}  {ratio:12.2f}  {out}",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":
