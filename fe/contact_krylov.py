@@ -65,7 +65,8 @@ class KrylovOptions:
             GMRES iterations than this.
         turn_cos: A slipping point whose slip direction turned so that ``u·u₀`` is
             below this counts as changed (its rows and columns become exact).
-        forcing: Relative GMRES tolerance is ``min(forcing, ρ)`` (inexact Newton).
+        forcing: Relative GMRES tolerance is ``min(forcing, ρ²)`` (inexact Newton that
+            keeps the final equilibrium error, hence the energy balance, at round-off).
         min_size: Smaller systems are always factorised (dense LU is cheap there).
     """
 
@@ -388,7 +389,7 @@ def krylov_step(
     """Newton direction by GMRES on the exact reduced system, base LU as preconditioner.
 
     Falls back to forming and factorising ``J`` (which becomes the new base) when there
-    is no usable base or GMRES does not reach ``min(opts.forcing, ρ)``. The returned
+    is no usable base or GMRES does not reach ``min(opts.forcing, ρ²)``. The returned
     ``Step.reused`` is True when no factorisation was done.
 
     Args:
@@ -413,7 +414,7 @@ def krylov_step(
             # Unknowns (dq, α_new - α): the right-hand side is then of the size of the
             # Newton residual, so the relative tolerance is a forcing term.
             rhs = np.concatenate([lin.b - lin.Jalpha @ it.alpha, lin.h / r_bar])
-            rtol = max(min(opts.forcing, it.rho), 1e-13)
+            rtol = max(min(opts.forcing, it.rho**2), 1e-14)  # last steps near round-off
             sol = gmres(
                 lambda z: _apply_k(ops, lin, r_bar, z),
                 lambda z: _apply_p(bp, z),
