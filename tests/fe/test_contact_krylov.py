@@ -147,3 +147,25 @@ def test_workspace_is_dropped_with_its_operator():
 def test_default_is_the_krylov_path():
     assert ContactSettings().linear_solver is LinearSolver.KRYLOV
     assert contact.LinearSolver.LU.value == "lu"
+
+
+@pytest.mark.parametrize("block_kind", ["all", "closed", "superset"])
+def test_form_jacobian_by_row_gathers_equals_r_w_t(block_kind, monkeypatch):
+    """The chunked row-gather J equals R W T + diag(d) for any block holding the closed set."""
+    monkeypatch.setattr(contact_newton, "_CHUNK", 7)  # several chunks, a ragged last one
+    W = random_W(25, 5)
+    prob, it, r = iterate(W, 6)
+    lin = contact_newton.linearise(prob, it, r)
+    assert np.any(lin.kind == 1)
+    assert np.any(lin.kind == 0)
+    J_ref = lin.R.toarray() @ W @ lin.T.toarray() + np.diag(lin.d)
+    m = len(prob.w_free)
+    block = {
+        "all": np.arange(m),
+        "closed": lin.closed,
+        "superset": np.union1d(lin.closed, np.arange(0, m, 4)),
+    }[block_kind]
+    dofs = (3 * block[:, None] + np.arange(3)).ravel()
+    J = contact_newton.form_jacobian(W[np.ix_(dofs, dofs)], block, lin)
+    np.testing.assert_allclose(J, J_ref, rtol=0, atol=1e-13 * np.abs(J_ref).max())
+    assert J.flags.c_contiguous
