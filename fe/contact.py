@@ -281,11 +281,15 @@ def _validate(
 def _line_search(
     prob: Problem, it: Iterate, step: Step, r: FloatArray, settings: ContactSettings
 ) -> Iterate | None:
-    """Armijo backtracking on the merit; None if no step >= min_step decreases it."""
+    """Armijo backtracking on the merit; None if no step >= min_step decreases it.
+
+    One product ``W dp`` serves every trial: ``W (p + τ dp) = W p + τ W dp``.
+    """
+    W_dp = (prob.W @ step.dp.ravel()).reshape(-1, 3)
     tau = 1.0
     while tau >= settings.min_step:
         alpha = it.alpha + tau * (step.alpha_new - it.alpha)
-        trial = evaluate(prob, it.p + tau * step.dp, alpha, r)
+        trial = evaluate(prob, it.p + tau * step.dp, alpha, r, it.Wp + tau * W_dp)
         if trial.merit <= (1.0 - 2.0 * settings.armijo * tau) * it.merit:
             return trial
         tau *= 0.5
@@ -373,6 +377,9 @@ def solve_increment(
         it = new
         history.append(it.rho)
     n_gmres = 0 if ws is None else ws.gmres_iterations - gmres_before
+    if n_iter:  # W p was updated along the steps: report w with an exact product
+        Wp = (prob.W @ it.p.ravel()).reshape(-1, 3)
+        it = it._replace(w=Wp + (prob.G @ it.alpha).reshape(-1, 3) + prob.w_free, Wp=Wp)
     return _result(prob, state_prev, it, n_iter, history, rescues, n_factor, n_gmres)
 
 

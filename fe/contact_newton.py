@@ -52,6 +52,8 @@ class Iterate(NamedTuple):
         eq: Equilibrium residual ``Gᵀp - e``, shape (k,), float64 [N].
         merit: ``½|C/r|² + ½|eq/r̄|²`` [mm²].
         rho: Scaled residual ``ρ`` (see fe.contact).
+        Wp: ``W p``, shape (m, 3), float64 [mm] (kept so a line search along ``dp``
+            needs one product ``W dp`` for all its trial steps).
     """
 
     p: FloatArray
@@ -63,9 +65,16 @@ class Iterate(NamedTuple):
     eq: FloatArray
     merit: float
     rho: float
+    Wp: FloatArray
 
 
-def evaluate(prob: Problem, p: FloatArray, alpha: FloatArray, r: FloatArray) -> Iterate:
+def evaluate(
+    prob: Problem,
+    p: FloatArray,
+    alpha: FloatArray,
+    r: FloatArray,
+    Wp: FloatArray | None = None,
+) -> Iterate:
     """Evaluate residuals, merit and scaled residual at ``(p, α)``.
 
     Args:
@@ -73,11 +82,14 @@ def evaluate(prob: Problem, p: FloatArray, alpha: FloatArray, r: FloatArray) -> 
         p: Contact forces, shape (m, 3), float64 [N].
         alpha: Rigid amplitudes, shape (k,), float64.
         r: Augmentation per point, shape (m,), float64 [N/mm].
+        Wp: ``W p`` if already known (e.g. ``W p₀ + τ W dp`` in a line search), shape
+            (m, 3), float64 [mm]; computed if None.
 
     Returns:
         The evaluated iterate.
     """
-    Wp = (prob.W @ p.ravel()).reshape(-1, 3)
+    if Wp is None:
+        Wp = (prob.W @ p.ravel()).reshape(-1, 3)
     Ga = (prob.G @ alpha).reshape(-1, 3)
     w = Wp + Ga + prob.w_free
     g = w.copy()
@@ -96,7 +108,27 @@ def evaluate(prob: Problem, p: FloatArray, alpha: FloatArray, r: FloatArray) -> 
     p_scale = r_bar * d_ref * _amax(prob.G)
     f_ref = max(_amax(prob.e), _amax(np.abs(prob.G).T @ np.abs(p.ravel())), p_scale)
     rho = max(_ratio(_amax(Cr), d_ref), _ratio(_amax(eq), f_ref))
-    return Iterate(p, alpha, w, g, law, C, eq, merit, rho)
+    return Iterate(p, alpha, w, g, law, C, eq, merit, rho, Wp)
+
+
+def sparse_product(W: FloatArray, x: FloatArray) -> FloatArray:
+    """Return ``W x`` for symmetric ``W`` from the rows of the points where ``x ≠ 0``.
+
+    Args:
+        W: Symmetric matrix, shape (3m, 3m), float64.
+        x: Per-point vector, shape (m, 3), float64; typically nonzero on few points.
+
+    Returns:
+        ``W x`` flattened, shape (3m,), float64.
+    """
+    support = np.flatnonzero(np.any(x != 0.0, axis=1))
+    if 2 * len(support) > len(x):  # the gather would read most of W anyway
+        out: FloatArray = W @ x.ravel()
+        return out
+    dofs = (3 * support[:, None] + np.arange(3)).ravel()
+    # W symmetric: W x = Σ_j x_j W[j, :] over the nonzero x_j (contiguous rows).
+    rows: FloatArray = x[support].ravel() @ W[dofs]
+    return rows
 
 
 def _amax(a: FloatArray) -> float:
@@ -272,7 +304,7 @@ def linearise(
     # Own targets of the rows: -w_n, -Δw_t (stick), -C_t·v/r (slip, second slot).
     own = -it.g[closed]
     own[is_slip, 1] = -np.sum(it.C[sl, 1:] * v_s, axis=1) / r[sl]
-    Ws = prob.W @ s.ravel()  # (3m,)
+    Ws = sparse_product(prob.W, s)  # (3m,)
     Jalpha = R @ prob.G  # (n_q, k)
     b = own[keep] - R @ Ws + Jalpha @ it.alpha
     H = (T.T @ prob.G).T  # (k, n_q)

@@ -169,3 +169,27 @@ def test_form_jacobian_by_row_gathers_equals_r_w_t(block_kind, monkeypatch):
     J = contact_newton.form_jacobian(W[np.ix_(dofs, dofs)], block, lin)
     np.testing.assert_allclose(J, J_ref, rtol=0, atol=1e-13 * np.abs(J_ref).max())
     assert J.flags.c_contiguous
+
+
+@pytest.mark.parametrize("n_nonzero", [0, 1, 4, 20])
+def test_sparse_product_equals_the_full_product(n_nonzero):
+    """W x from the rows of x's support (or the full product when x is dense) is W x."""
+    W = random_W(30, 7)
+    rng = np.random.default_rng(8)
+    x = np.zeros((30, 3))
+    x[rng.choice(30, n_nonzero, replace=False)] = rng.normal(size=(n_nonzero, 3))
+    np.testing.assert_allclose(contact_newton.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
+
+
+def test_state_w_is_the_exact_product_after_line_searches():
+    """The line search updates W p incrementally; the reported w is W p + G α + w_free."""
+    W = random_W(40, 9)
+    m = 40
+    rng = np.random.default_rng(10)
+    w_free = rng.normal(scale=0.5, size=(m, 3)) + np.array([-0.3, 0.0, 0.0])
+    G = rng.normal(size=(3 * m, 2))
+    e = np.array([2.0, -1.0])
+    res = solve_increment(W, w_free, ContactState.initial(m, 2), ContactSettings(mu=0.3), G=G, e=e)
+    assert res.iterations > 2
+    exact = (W @ res.state.p.ravel() + G @ res.state.alpha).reshape(-1, 3) + w_free
+    np.testing.assert_array_equal(res.state.w, exact)
