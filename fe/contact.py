@@ -259,7 +259,11 @@ def _validate(
     w_free = np.asarray(w_free, dtype=np.float64)
     if w_free.shape != (m, 3):
         raise ParameterError(f"w_free must have shape {(m, 3)}, got {w_free.shape}")
-    if not (np.all(np.isfinite(W)) and np.all(np.isfinite(w_free))):
+    # One pass without a temporary: NaN and inf propagate into the sum (an overflowing
+    # sum of finite entries falls back to the entrywise check).
+    w_sum = float(np.sum(W))
+    finite_w = np.isfinite(w_sum) or bool(np.all(np.isfinite(W)))
+    if not (finite_w and np.all(np.isfinite(w_free))):
         raise ParameterError("W and w_free must be finite, got NaN or inf")
     d_n = np.diag(W)[0::3]
     if np.any(d_n <= 0.0):
@@ -275,7 +279,7 @@ def _validate(
             f"G and e must have shapes {(3 * m, k)} and {(k,)} (k from state_prev.alpha), "
             f"got {G_arr.shape} and {e_arr.shape}"
         )
-    return Problem(W, w_free, G_arr, e_arr, np.array(state_prev.w[:, 1:]), 0.0)
+    return Problem(W, w_free, G_arr, e_arr, np.array(state_prev.w[:, 1:]), 0.0, w_sum)
 
 
 def _line_search(
@@ -352,7 +356,7 @@ def solve_increment(
     history, rescues, n_factor = [it.rho], 0, 0
     n_iter, factor = 0, None
     krylov = settings.linear_solver is LinearSolver.KRYLOV
-    ws = workspace_for(prob.W) if krylov else None
+    ws = workspace_for(prob.W, prob.w_sum) if krylov else None
     gmres_before = 0 if ws is None else ws.gmres_iterations
     while it.rho > settings.tol:
         if n_iter == settings.max_iter:

@@ -102,7 +102,10 @@ class Workspace:
         base: The LU kept as preconditioner (None until the first factorisation).
         refresh: Refactorise at the next step.
         block: Points whose DOFs ``W_block`` holds, shape (n_b,) (None: none yet).
-        W_block: ``W`` on those DOFs (rebuilt per increment, never trusted across calls).
+        W_block: ``W`` on those DOFs; kept across increments while ``W``'s fingerprint
+            ``w_sum`` is unchanged and the block holds the closed points without too
+            much slack (``BLOCK_SLACK``).
+        w_sum: Fingerprint of ``W`` (``Problem.w_sum``) that ``W_block`` was taken from.
         gmres_iterations: GMRES iterations done (a counter for reports).
     """
 
@@ -110,18 +113,26 @@ class Workspace:
     refresh: bool = False
     block: IntArray | None = None
     W_block: FloatArray | None = field(default=None, repr=False)
+    w_sum: float = float("nan")
     gmres_iterations: int = 0
+
+
+BLOCK_SLACK = 1.25
+"""A kept ``W`` block may hold at most this many times the closed points (each GMRES
+iteration costs ``(3 n_b)²``; regathering costs a pass over the rows of the block)."""
 
 
 _WORKSPACES: dict[tuple[int, int], tuple[weakref.ref[FloatArray], Workspace]] = {}
 _LOCK = threading.Lock()
 
 
-def workspace_for(W: FloatArray) -> Workspace:
+def workspace_for(W: FloatArray, w_sum: float = float("nan")) -> Workspace:
     """Return this thread's workspace for ``W`` (kept while ``W`` lives).
 
     The base LU carries over between increments on the same ``W``; being only a
-    preconditioner, a stale or foreign base can cost iterations but not accuracy.
+    preconditioner, a stale or foreign base can cost iterations but not accuracy. The
+    gathered ``W`` block enters the Krylov operator, so it is kept only while ``w_sum``
+    (``Problem.w_sum``, NaN: unknown) shows that ``W`` did not change in place.
     """
     key = (id(W), threading.get_ident())
     with _LOCK:
@@ -131,7 +142,9 @@ def workspace_for(W: FloatArray) -> Workspace:
         else:
             ws = Workspace()
             _WORKSPACES[key] = (weakref.ref(W, lambda _r: _WORKSPACES.pop(key, None)), ws)
-    ws.block, ws.W_block = None, None  # W may have changed in place since the last call
+    if ws.w_sum != w_sum:  # W changed in place since the last call (NaN: unknown)
+        ws.block, ws.W_block = None, None
+    ws.w_sum = w_sum
     return ws
 
 
@@ -147,9 +160,9 @@ class _Operators(NamedTuple):
 
 def _operators(prob: Problem, lin: Linear, ws: Workspace) -> _Operators:
     m = len(prob.w_free)
-    if ws.block is None or not np.all(np.isin(lin.closed, ws.block)):
+    if not _block_fits(ws.block, lin.closed, m):
         if len(lin.closed) > 0.8 * m:  # gathering would copy nearly all of W
-            ws.block, ws.W_block = np.arange(m, dtype=np.int64), prob.W
+            ws.block, ws.W_block = np.arange(m, dtype=np.int64), None  # None: W itself
         else:
             dofs = (3 * lin.closed[:, None] + np.arange(3)).ravel()
             ws.block, ws.W_block = lin.closed, prob.W[np.ix_(dofs, dofs)]
@@ -158,6 +171,13 @@ def _operators(prob: Problem, lin: Linear, ws: Workspace) -> _Operators:
     if len(dofs) == prob.W.shape[0]:
         return _Operators(block, W_b, lin.R, lin.T, lin.d)
     return _Operators(block, W_b, lin.R[:, dofs], lin.T[dofs, :], lin.d)
+
+
+def _block_fits(block: IntArray | None, closed: IntArray, m: int) -> bool:
+    """Whether a kept block holds the closed points with at most ``BLOCK_SLACK`` slack."""
+    if block is None or len(block) > max(BLOCK_SLACK * len(closed), 0.8 * m):
+        return False
+    return bool(np.all(np.isin(closed, block)))
 
 
 def _apply(ops: _Operators, X: FloatArray) -> FloatArray:

@@ -29,6 +29,9 @@ class Problem(NamedTuple):
         e: Rigid-body load, shape (k,), float64 [N].
         w_t_prev: Previous tangential displacement, shape (m, 2), float64 [mm].
         mu: Friction coefficient.
+        w_sum: Sum of the entries of ``W`` (its finiteness check, and a fingerprint that
+            tells caches keyed by ``W``'s identity whether it changed in place); NaN if
+            unknown, which no cache trusts.
     """
 
     W: FloatArray
@@ -37,6 +40,7 @@ class Problem(NamedTuple):
     e: FloatArray
     w_t_prev: FloatArray
     mu: float
+    w_sum: float = float("nan")
 
 
 class Iterate(NamedTuple):

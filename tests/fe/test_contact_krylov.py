@@ -193,3 +193,64 @@ def test_state_w_is_the_exact_product_after_line_searches():
     assert res.iterations > 2
     exact = (W @ res.state.p.ravel() + G @ res.state.alpha).reshape(-1, 3) + w_free
     np.testing.assert_array_equal(res.state.w, exact)
+
+
+def test_w_block_is_kept_only_while_it_holds_the_closed_points():
+    """A kept block is reused if it holds the closed set (with little slack), else regathered."""
+    W = random_W(40, 11)
+    prob_a, it_a, r = iterate(W, 12)
+    prob_b, it_b, _ = iterate(W, 13)  # another closed set
+    lin_a = contact_newton.linearise(prob_a, it_a, r)
+    lin_b = contact_newton.linearise(prob_b, it_b, r)
+    assert not np.all(np.isin(lin_b.closed, lin_a.closed))
+    ws = contact_krylov.Workspace()
+    ops_a = contact_krylov._operators(prob_a, lin_a, ws)
+    assert ops_a.W_b is contact_krylov._operators(prob_a, lin_a, ws).W_b  # same set: kept
+    ops_b = contact_krylov._operators(prob_b, lin_b, ws)
+    assert np.all(np.isin(lin_b.closed, ops_b.block))
+    dofs = (3 * ops_b.block[:, None] + np.arange(3)).ravel()
+    np.testing.assert_array_equal(ops_b.W_b, W[np.ix_(dofs, dofs)])
+    x = np.random.default_rng(14).normal(size=len(lin_b.keys))
+    J_b = dense_j(prob_b, lin_b)
+    np.testing.assert_allclose(contact_krylov._apply(ops_b, x), J_b @ x, atol=1e-12)
+
+
+def test_w_block_is_dropped_when_w_changes_in_place():
+    W = random_W(20, 15)
+    ws = contact_krylov.workspace_for(W, float(W.sum()))
+    ws.block, ws.W_block = np.arange(3), W[:9, :9].copy()
+    assert contact_krylov.workspace_for(W, float(W.sum())).W_block is not None
+    W[0, 0] += 1.0
+    assert contact_krylov.workspace_for(W, float(W.sum())).W_block is None
+    ws.block, ws.W_block = np.arange(3), W[:9, :9].copy()
+    assert contact_krylov.workspace_for(W).W_block is None  # unknown fingerprint
+
+
+def test_increments_on_one_w_equal_fresh_workspaces():
+    """Kept blocks and base LU across increments (closed set growing, then shrinking)
+    give the solutions of fresh workspaces and of the LU path."""
+    m = 60
+    W = random_W(m, 16, coupling=0.3)
+    rng = np.random.default_rng(17)
+    profile = rng.uniform(0.0, 1.0, m)
+    G = np.zeros((3 * m, 1))
+    G[0::3, 0] = 1.0
+    krylov = ContactSettings(mu=0.3, krylov=KrylovOptions(max_update=0.5))
+    lu = ContactSettings(mu=0.3, linear_solver=LinearSolver.LU)
+    states = {"kept": ContactState.initial(m, 1), "fresh": ContactState.initial(m, 1)}
+    state_lu = ContactState.initial(m, 1)
+    for i, load in enumerate([5.0, 20.0, 60.0, 30.0, 10.0]):
+        w_free = np.column_stack([profile, 0.01 * i * np.ones(m), np.zeros(m)])
+        e = np.array([load])
+        res = {
+            "kept": solve_increment(W, w_free, states["kept"], krylov, G=G, e=e),
+            "fresh": solve_increment(W.copy(), w_free, states["fresh"], krylov, G=G, e=e),
+        }
+        res_lu = solve_increment(W, w_free, state_lu, lu, G=G, e=e)
+        states = {k: v.state for k, v in res.items()}
+        state_lu = res_lu.state
+        scale = np.abs(state_lu.p).max()
+        for v in states.values():
+            np.testing.assert_allclose(v.p, state_lu.p, atol=1e-9 * scale)
+            np.testing.assert_array_equal(v.status, state_lu.status)
+    assert 0 < res_lu.n_stick + res_lu.n_slip < m
