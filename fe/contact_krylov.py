@@ -160,22 +160,24 @@ class _Operators(NamedTuple):
 
 def _operators(prob: Problem, lin: Linear, ws: Workspace) -> _Operators:
     m = len(prob.w_free)
-    if not _block_fits(ws.block, lin.closed, m):
+    block = ws.block
+    if block is None or not _block_fits(block, lin.closed, m):
         if len(lin.closed) > 0.8 * m:  # gathering would copy nearly all of W
-            ws.block, ws.W_block = np.arange(m, dtype=np.int64), None  # None: W itself
+            block, ws.W_block = np.arange(m, dtype=np.int64), None  # None: W itself
         else:
             dofs = (3 * lin.closed[:, None] + np.arange(3)).ravel()
-            ws.block, ws.W_block = lin.closed, prob.W[np.ix_(dofs, dofs)]
-    block, W_b = ws.block, prob.W if ws.W_block is None else ws.W_block
+            block, ws.W_block = lin.closed, prob.W[np.ix_(dofs, dofs)]
+        ws.block = block
+    W_b = prob.W if ws.W_block is None else ws.W_block
     dofs = (3 * block[:, None] + np.arange(3)).ravel()
     if len(dofs) == prob.W.shape[0]:
         return _Operators(block, W_b, lin.R, lin.T, lin.d)
     return _Operators(block, W_b, lin.R[:, dofs], lin.T[dofs, :], lin.d)
 
 
-def _block_fits(block: IntArray | None, closed: IntArray, m: int) -> bool:
+def _block_fits(block: IntArray, closed: IntArray, m: int) -> bool:
     """Whether a kept block holds the closed points with at most ``BLOCK_SLACK`` slack."""
-    if block is None or len(block) > max(BLOCK_SLACK * len(closed), 0.8 * m):
+    if len(block) > max(BLOCK_SLACK * len(closed), 0.8 * m):
         return False
     return bool(np.all(np.isin(closed, block)))
 
