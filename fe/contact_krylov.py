@@ -37,6 +37,7 @@ import numpy.typing as npt
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from fe.contact_law import ContactStatus
 from fe.contact_newton import (
     Factor,
     Iterate,
@@ -47,6 +48,7 @@ from fe.contact_newton import (
     form_jacobian,
     linearise,
     solve_bordered,
+    sparse_product,
 )
 
 FloatArray = npt.NDArray[np.float64]
@@ -158,16 +160,43 @@ class _Operators(NamedTuple):
     d: FloatArray
 
 
-def _operators(prob: Problem, lin: Linear, ws: Workspace) -> _Operators:
+def _ensure_block(prob: Problem, closed: IntArray, ws: Workspace) -> IntArray:
+    """Keep or regather ``ws.W_block`` so that it holds the points ``closed``."""
     m = len(prob.w_free)
     block = ws.block
-    if block is None or not _block_fits(block, lin.closed, m):
-        if len(lin.closed) > 0.8 * m:  # gathering would copy nearly all of W
+    if block is None or not _block_fits(block, closed, m):
+        if len(closed) > 0.8 * m:  # gathering would copy nearly all of W
             block, ws.W_block = np.arange(m, dtype=np.int64), None  # None: W itself
         else:
-            dofs = (3 * lin.closed[:, None] + np.arange(3)).ravel()
-            block, ws.W_block = lin.closed, prob.W[np.ix_(dofs, dofs)]
+            dofs = (3 * closed[:, None] + np.arange(3)).ravel()
+            block, ws.W_block = closed, prob.W[np.ix_(dofs, dofs)]
         ws.block = block
+    return block
+
+
+def _block_product(prob: Problem, ws: Workspace, x: FloatArray) -> FloatArray:
+    """``W x`` on the DOFs of ``ws.block`` (zero elsewhere), x of shape (m, 3).
+
+    The block part is a product with ``W_block``; the few points outside the block where
+    ``x ≠ 0`` (points that just opened) add their rows of the symmetric ``W``.
+    """
+    if ws.W_block is None or ws.block is None:
+        return sparse_product(prob.W, x)
+    m = len(x)
+    dofs = (3 * ws.block[:, None] + np.arange(3)).ravel()
+    out = np.zeros(3 * m)
+    out[dofs] = ws.W_block @ x[ws.block].ravel()
+    outside = np.ones(m, dtype=bool)
+    outside[ws.block] = False
+    outside = np.flatnonzero(outside & np.any(x != 0.0, axis=1))
+    if len(outside):
+        o_dofs = (3 * outside[:, None] + np.arange(3)).ravel()
+        out[dofs] += x[outside].ravel() @ prob.W[o_dofs][:, dofs]
+    return out
+
+
+def _operators(prob: Problem, lin: Linear, ws: Workspace) -> _Operators:
+    block = _ensure_block(prob, lin.closed, ws)
     W_b = prob.W if ws.W_block is None else ws.W_block
     dofs = (3 * block[:, None] + np.arange(3)).ravel()
     if len(dofs) == prob.W.shape[0]:
@@ -425,7 +454,10 @@ def krylov_step(
     Returns:
         The Newton step, or None if the reduced matrix is numerically singular.
     """
-    lin = linearise(prob, it, r)
+    # The closed set is the trial's (no forced points here): gather the block first, so
+    # that the right-hand side's W s comes from it.
+    _ensure_block(prob, np.flatnonzero(it.law.status != ContactStatus.OPEN), ws)
+    lin = linearise(prob, it, r, w_times=lambda x: _block_product(prob, ws, x))
     n = len(lin.keys)
     ops = _operators(prob, lin, ws)
     r_bar = float(np.mean(r))

@@ -7,6 +7,7 @@ active-set linear algebra. Notation and conventions are those of :mod:`fe.contac
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -254,6 +255,8 @@ def linearise(
     it: Iterate,
     r: FloatArray,
     force_closed: npt.NDArray[np.bool_] | None = None,
+    *,
+    w_times: Callable[[FloatArray], FloatArray] | None = None,
 ) -> Linear:
     """Build the reduced generalised-Newton system of an iterate (the matrix not formed).
 
@@ -271,6 +274,9 @@ def linearise(
         it: Current iterate (its trial status defines the active sets).
         r: Augmentation per point, shape (m,), float64 [N/mm].
         force_closed: Points to close if open, shape (m,), bool (default none).
+        w_times: ``x ↦ W x`` for x of shape (m, 3), returning shape (3m,), exact at least
+            on the closed points' DOFs (only those enter ``b``); default
+            :func:`sparse_product`.
 
     Returns:
         The reduced system.
@@ -308,7 +314,7 @@ def linearise(
     # Own targets of the rows: -w_n, -Δw_t (stick), -C_t·v/r (slip, second slot).
     own = -it.g[closed]
     own[is_slip, 1] = -np.sum(it.C[sl, 1:] * v_s, axis=1) / r[sl]
-    Ws = sparse_product(prob.W, s)  # (3m,)
+    Ws = sparse_product(prob.W, s) if w_times is None else w_times(s)  # (3m,)
     Jalpha = R @ prob.G  # (n_q, k)
     b = own[keep] - R @ Ws + Jalpha @ it.alpha
     H = (T.T @ prob.G).T  # (k, n_q)

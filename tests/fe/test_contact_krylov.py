@@ -254,3 +254,22 @@ def test_increments_on_one_w_equal_fresh_workspaces():
             np.testing.assert_allclose(v.p, state_lu.p, atol=1e-9 * scale)
             np.testing.assert_array_equal(v.status, state_lu.status)
     assert 0 < res_lu.n_stick + res_lu.n_slip < m
+
+
+def test_block_product_is_w_s_on_the_closed_dofs():
+    """R W s from the kept block (plus rows of opened points outside it) equals R (W s)."""
+    W = random_W(40, 18)
+    prob, it, r = iterate(W, 19)
+    lin = contact_newton.linearise(prob, it, r)
+    ws = contact_krylov.Workspace()
+    contact_krylov._ensure_block(prob, lin.closed, ws)
+    assert ws.W_block is not None  # a gathered block, not W itself
+    x = lin.s.copy()
+    outside = np.setdiff1d(np.arange(40), ws.block)
+    x[outside[:4]] = 1.0  # points that just opened carry force outside the block
+    got = contact_krylov._block_product(prob, ws, x)
+    np.testing.assert_allclose(lin.R @ got, lin.R @ (W @ x.ravel()), atol=1e-12)
+    lin_block = contact_newton.linearise(
+        prob, it, r, w_times=lambda v: contact_krylov._block_product(prob, ws, v)
+    )
+    np.testing.assert_allclose(lin_block.b, lin.b, atol=1e-12)
