@@ -8,6 +8,8 @@ Q = 0.8 μ P (partial slip with an annulus of slip). Run:
 
     .venv/bin/python benchmarks/bench_contact.py [--sizes 300 1000 1500] [--per-quarter 25]
     .venv/bin/python benchmarks/bench_contact.py --hinge W.npz [--stage0 10 --stage1 4]
+    .venv/bin/python benchmarks/bench_contact.py --hinge W.npz --threads 1 2
+    .venv/bin/python benchmarks/bench_contact.py --hinge W.npz --stage0 -1   # whole cycle
 
 Each case runs with the old path (``LinearSolver.LU``: dense LU per iteration, chord
 steps) and the new one (``LinearSolver.KRYLOV``) in the same process, and prints the
@@ -16,18 +18,20 @@ from an .npz with the condensed ``W``, ``G`` and ``w0`` of ``fe.cycle.configurat
 (e.g. ``np.savez(path, W=c.W, G=c.G, w0=c.w0)``), to time refinement levels whose
 condensation takes minutes.
 
-On a shared or small machine set OPENBLAS_NUM_THREADS=1: the reduced systems
-(n_q ≈ 3 n_stick + 2 n_slip ≲ 2000 here) gain little from threads and lose a lot to
-oversubscription. "peak MiB" is tracemalloc's peak during the cycle, excluding W itself.
+``--threads`` runs every case under ``threadpoolctl.threadpool_limits`` with each given
+number of BLAS threads (default 1, as ``CycleSettings.blas_threads``). "peak MiB" is
+tracemalloc's peak during the cycle, excluding W itself.
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import time
 import tracemalloc
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from fe.contact import ContactSettings, ContactState, LinearSolver, solve_increment
 
@@ -88,7 +92,7 @@ def run(
 
 
 def run_hinge(path: str, n_stage0: int, n_stage1: int, solver: LinearSolver):
-    """Replay the first increments of stages 0 and 1 of the default cycle on a saved W."""
+    """Replay the first increments of stages 0 and 1 (all stages if n_stage0 < 0) on a saved W."""
     import types
 
     from fe.cycle import _advance
@@ -102,7 +106,9 @@ def run_hinge(path: str, n_stage0: int, n_stage1: int, solver: LinearSolver):
     f_prev, iters, n_lu, n_inc, eta_proxy = 0.0, 0, 0, 0, 0.0
     tracemalloc.start()
     t0 = time.perf_counter()
-    for stage, limit in zip(cyc.stages()[:2], (n_stage0, n_stage1), strict=True):
+    stages = cyc.stages()
+    limits = [None] * len(stages) if n_stage0 < 0 else [n_stage0, n_stage1]
+    for stage, limit in zip(stages[: len(limits)], limits, strict=True):
         previous = None
         for target in stage_targets(*stage, cyc.grading)[:limit]:
             new, res = _advance(
@@ -128,31 +134,34 @@ def main() -> None:
     parser.add_argument("--hinge", type=str, default=None, help=".npz with W, G, w0")
     parser.add_argument("--stage0", type=int, default=10)
     parser.add_argument("--stage1", type=int, default=4)
+    parser.add_argument("--threads", type=int, nargs="+", default=[1], help="BLAS threads")
     args = parser.parse_args()
     print(
-        "     m  path     increments  iterations  LU  wall s  peak MiB  new/old wall"
+        "     m  path  thr  increments  iterations  LU  wall s  peak MiB  new/old wall"
         "  result (open/stick/slip at +Q, or δ_end mm and Σ friction work N·mm)"
     )
     cases = [("hinge", 0)] if args.hinge else [("grid", m) for m in args.sizes]
-    for kind, m_target in cases:
+    for (kind, m_target), threads in itertools.product(cases, args.threads):
         walls = {}
         for solver in (LinearSolver.LU, LinearSolver.KRYLOV):
-            if kind == "hinge":
-                m, n_inc, iters, n_lu, wall, peak, out = run_hinge(
-                    args.hinge, args.stage0, args.stage1, solver
-                )
-            else:
-                m, n_inc, iters, n_lu, per, peak, out = run(
-                    m_target, args.per_quarter, solver, chord_rate=args.chord_rate
-                )
-                wall = per * n_inc
+            with threadpool_limits(limits=threads, user_api="blas"):
+                m, n_inc, iters, n_lu, wall, peak, out = _case(kind, m_target, solver, args)
             walls[solver] = wall
             ratio = wall / walls[LinearSolver.LU]
             print(
-                f"{m:6d}  {solver.name:7s}  {n_inc:10d}  {iters:10d}  {n_lu:3d}  {wall:6.1f}"
-                f"  {peak:8.1f}  {ratio:12.2f}  {out}",
+                f"{m:6d}  {solver.name[:3]:4s}  {threads:3d}  {n_inc:10d}  {iters:10d}  {n_lu:3d}"
+                f"  {wall:6.1f}  {peak:8.1f}  {ratio:12.2f}  {out}",
                 flush=True,
             )
+
+
+def _case(kind: str, m_target: int, solver: LinearSolver, args: argparse.Namespace):
+    if kind == "hinge":
+        return run_hinge(args.hinge, args.stage0, args.stage1, solver)
+    m, n_inc, iters, n_lu, per, peak, out = run(
+        m_target, args.per_quarter, solver, chord_rate=args.chord_rate
+    )
+    return m, n_inc, iters, n_lu, per * n_inc, peak, out
 
 
 if __name__ == "__main__":
