@@ -607,10 +607,18 @@ def _verdict(
                 "the model is consistent with the data within the noise",
                 None,
             )
+        why = ""
+        if fits and fits[0].chi2 <= limit:  # a fit that would do, but not significant at this N
+            f = fits[0]
+            why = (
+                f"; {f.name} would fit (χ² {f.chi2:.1f}) but p = {f.p_value:.2g} is not below "
+                f"α/m = {s.alpha / len(fits):.2g} with N = {n} observations: add cases"
+            )
         return (
             "unexplained",
             (),
-            f"a real residual (χ² {c0:.0f} > {limit:.0f}) that no candidate reduces significantly",
+            f"a real residual (χ² {c0:.0f} > {limit:.0f}) that no candidate reduces significantly"
+            + why,
             None,
         )
     best = good[0]
