@@ -1,7 +1,7 @@
 """``hingelab calibrate``: add effects to the model, fit them, and log the error ledger.
 
-``hingelab calibrate MODEL.toml DATA_DIR --effects NAME[,NAME] --out DIR [--json]`` fits
-the named effects' parameters (``validation.calibrate``), writes the extended model to
+``hingelab calibrate MODEL.toml DATA_DIR [--mu] --effects NAME[,NAME] --out DIR [--json]``
+fits μ (with ``--mu``, first) and the named effects' parameters (``validation.calibrate``), writes the extended model to
 ``DIR/MODEL.toml``, appends baseline → +effect → … to ``DIR/ledger.json`` and
 ``DIR/ledger.csv`` and draws ``DIR/ledger.png`` (error per step, held-out error, noise
 level), then re-runs the comparison with the new model (``hingelab compare``'s work, into
@@ -15,6 +15,7 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from cad.errors import ParameterError
 from studies.pipeline import dumps
 
 if TYPE_CHECKING:
@@ -27,7 +28,10 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("calibrate", help="fit named effects, write the model, log the error")
     p.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
     p.add_argument("data", type=Path, metavar="DATA_DIR", help="measurement folder (cases.csv)")
-    p.add_argument("--effects", required=True, metavar="NAME[,NAME]", help="effects to add")
+    p.add_argument("--effects", default="", metavar="NAME[,NAME]", help="effects to add")
+    p.add_argument(
+        "--mu", action="store_true", help="fit the friction coefficient first (bounded 0.02–0.8)"
+    )
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     p.add_argument("--json", action="store_true", help="print the ledger as JSON")
     p.add_argument("--model-error", type=float, default=0.02, metavar="REL", help="model floor")
@@ -55,12 +59,14 @@ def run(args: argparse.Namespace) -> int:
     spec = read_model(args.model, REGISTRY)
     data = read_measurement_set(args.data)
     names = [n.strip() for n in args.effects.split(",") if n.strip()]
+    if not names and not args.mu:
+        raise ParameterError("calibrate: give --effects NAME[,NAME] and/or --mu")
     settings = DiagnoseSettings(
         features=FeatureSettings(rel_floor=args.model_error),
         increments_per_stage=args.increments,
         clearance_increments=2 * args.increments,
     )
-    new_spec, rows = calibrate(spec, data, names, settings)
+    new_spec, rows = calibrate(spec, data, names, settings, fit_mu=args.mu)
     model_out = write_model(new_spec, args.out / "MODEL.toml")
     every = append_ledger(args.out, rows)
     png = plot_ledger(every, args.out / "ledger.png")

@@ -1,6 +1,6 @@
 """Add effects to a model, fit their parameters and keep an error ledger.
 
-``calibrate`` fits the named effects one after another (each by
+``calibrate`` fits μ if asked (first), then the named effects one after another (each by
 ``validation.diagnose.fit_candidate`` on the model that already holds the ones before
 it), and returns the extended model and one ledger row per step: baseline → +effect → …
 with the parameters added, the error ``sqrt(χ²/N)`` (RMS feature residual in σ; ≈ 1 at
@@ -18,6 +18,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from cad.errors import ParameterError
 from validation.diagnose import DiagnoseSettings, chi2, fit_candidate, measured_features
@@ -51,13 +53,38 @@ class LedgerRow:
     bic: float
 
 
+MU_RANGE = (0.02, 0.8)
+"""Bounds of a fitted friction coefficient (dry steel on steel lies near 0.1–0.6)."""
+
+
+def _fit_mu(ev: ModelEvaluator, meas: Any, rows: Any, maxiter: int) -> float:
+    """Return μ minimising χ² over ``rows`` (bounded Brent in log10 μ; the current μ competes)."""
+    from scipy import optimize
+
+    def cost(u: float) -> float:
+        return chi2(ev.features({}, mu=float(10.0**u)), meas, rows)
+
+    lo, hi = (math.log10(b) for b in MU_RANGE)
+    res = optimize.minimize_scalar(
+        cost, bounds=(lo, hi), method="bounded", options={"maxiter": maxiter, "xatol": 0.005}
+    )
+    now = ev.cycle.mu
+    return float(10.0**res.x) if float(res.fun) < cost(math.log10(now)) else now
+
+
 def calibrate(
     spec: ModelSpec,
     data: MeasurementSet,
     names: Sequence[str],
     settings: DiagnoseSettings | None = None,
+    *,
+    fit_mu: bool = False,
 ) -> tuple[ModelSpec, list[LedgerRow]]:
-    """Fit the named effects in turn; return the extended model and the ledger rows.
+    """Fit μ (if asked) and then the named effects in turn; return the model and the ledger.
+
+    μ changes no operator, so its fit reuses the factorisations; it comes first (the
+    baseline model of the issue is "elasticity + Coulomb contact, μ calibrated"), bounded
+    to ``MU_RANGE``, with its held-out error refitted on each fold (``_folds``).
 
     Raises:
         ParameterError: An unknown effect or one already in the model.
@@ -77,7 +104,35 @@ def calibrate(
     c = chi2(base, meas)
     err = math.sqrt(c / n_feat)
     rows = [LedgerRow("baseline", {}, 0, c, err, err, c, c)]
-    for k, name in enumerate(names, start=1):
+    k0 = 0
+    if fit_mu:
+        from validation.diagnose import _folds
+
+        everything = np.ones(len(meas.points), dtype=bool)
+        mu = _fit_mu(ev, meas, everything, maxiter=12)
+        held = 0.0
+        for test in _folds(meas.points):
+            mu_fold = _fit_mu(ev, meas, ~test, maxiter=8)
+            held += chi2(ev.features({}, mu=mu_fold), meas, test)
+        spec = dataclasses.replace(spec, cycle=dataclasses.replace(spec.cycle, mu=mu))
+        ev.spec, ev.cycle = spec, dataclasses.replace(ev.cycle, mu=mu)  # runs cached by μ
+        base = ev.features({})
+        c = chi2(base, meas)
+        held = max(held, c)
+        k0 = 1
+        rows.append(
+            LedgerRow(
+                "+mu",
+                {"mu": mu},
+                1,
+                c,
+                math.sqrt(c / n_feat),
+                math.sqrt(held / n_feat),
+                c + 2,
+                c + math.log(n_feat),
+            )
+        )
+    for k, name in enumerate(names, start=1 + k0):
         fit = fit_candidate(ev, name, meas, base, 1, s)
         # the model's own post-only effects come back re-tuned with the new one
         spec = dataclasses.replace(spec, effects={**spec.effects, **fit.model_effects})

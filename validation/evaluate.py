@@ -94,16 +94,17 @@ class ModelEvaluator:
         return self._systems[clearance]
 
     def _raw_loop(
-        self, point: tuple[float, float], solve_effects: Effects
+        self, point: tuple[float, float], solve_effects: Effects, mu: float | None = None
     ) -> tuple[FloatArray, FloatArray] | None:
         """(F, δ with free play) of the cycle with the solve-side effects; None if it fails."""
-        key = (point, _key(solve_effects))
+        mu = self.cycle.mu if mu is None else float(mu)
+        key = (point, _key(solve_effects), mu)
         if key not in self._loops:
             from fe.effects import run_cycle_with_effects
 
             clearance, amp = point
             system, base = self._system(clearance)
-            settings = dataclasses.replace(self.cycle, amplitude_n=amp)
+            settings = dataclasses.replace(self.cycle, amplitude_n=amp, mu=mu)
             t0 = time.perf_counter()
             try:
                 res = run_cycle_with_effects(
@@ -120,11 +121,13 @@ class ModelEvaluator:
             self.cycle_s += time.perf_counter() - t0
         return self._loops[key]
 
-    def features(self, effects: Effects) -> FloatArray:
+    def features(self, effects: Effects, mu: float | None = None) -> FloatArray:
         """Return the features at every design point, shape (n_points, 3); NaN rows where it fails.
 
         Args:
             effects: Extra effects (name → parameter → value), added to the model's own.
+            mu: Friction coefficient of the runs (None: the model file's). μ changes no
+                operator, so every value reuses the same factorisation and condensation.
         """
         from fe.effects import post_process, validate_effects
 
@@ -133,7 +136,7 @@ class ModelEvaluator:
         post = {n: p for n, p in every.items() if is_post_only(n)}
         out = np.full((len(self.points), 3), np.nan)
         for i, point in enumerate(self.points):
-            raw = self._raw_loop(point, solve)
+            raw = self._raw_loop(point, solve, mu)
             if raw is None:
                 continue
             F, d = raw

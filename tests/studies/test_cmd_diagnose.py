@@ -41,7 +41,7 @@ def stubs(monkeypatch):
             {"n_cycles": 0, "wall_s": 0.0},
         )
 
-    def fake_calibrate(spec, data, names, settings=None):
+    def fake_calibrate(spec, data, names, settings=None, fit_mu=False):
         rows = [
             LedgerRow("baseline", {}, 0, 900.0, 8.7, 8.7, 900.0, 900.0),
             LedgerRow(

@@ -239,6 +239,23 @@ def test_hidden_interference_is_named_first(spec, tmp_path):
     _error_falls_to_the_noise(spec, data, "interference")
 
 
+@pytest.mark.slow
+def test_mu_is_calibrated_and_the_error_falls(spec, tmp_path):
+    """The data come from μ = 0.3 (finer mesh); the model starts at μ = 0.2."""
+    import dataclasses
+
+    from validation.calibrate import calibrate
+
+    truth = dataclasses.replace(spec, cycle=dataclasses.replace(spec.cycle, mu=0.3))
+    design = ((0.0, (100.0, 250.0, 400.0)),)
+    data = synth_set(truth, {}, tmp_path, 10, design)
+    fitted, rows = calibrate(spec, data, [], FAST, fit_mu=True)
+    assert [r.step for r in rows] == ["baseline", "+mu"]
+    assert fitted.cycle.mu == pytest.approx(0.3, rel=0.1)
+    assert rows[0].error >= 5 * rows[-1].error, rows
+    assert rows[-1].error < 2.0, rows
+
+
 def play_operator(force_n, slip_n):
     """Return the play (backlash) operator of a force history: x moves only when |F − x| > slip."""
     out = np.zeros_like(force_n)
