@@ -112,7 +112,10 @@ def run_model_for_cases(
     out = {}
     for c in cases:
         r = runs[(c.clearance_mm, c.amplitude_n)]
-        F, d = r.machine_path() if with_free_play else r.loop_arrays()[:2]
+        # a stated η (an η-only table, like the paper's) excludes the free play, as
+        # `hingelab cycle` reports it; a measured loop includes it (the grips see it)
+        free_play = with_free_play and c.loop is not None
+        F, d = r.machine_path() if free_play else r.loop_arrays()[:2]
         source = f"model: Δr = {c.clearance_mm:g} mm, Fg = {c.amplitude_n:g} N"
         out[c.case_id] = ModelResult(Loop(F, d, None, source), r.metrics())
     return out, runs

@@ -171,6 +171,19 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
     )
 
 
+def _eta_without_free_play(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:
+    """η of model features with the free play taken off δ_max, shape (n_points,).
+
+    A stated η (an η-only table, like the paper's, or ``hingelab cycle``'s report)
+    excludes the free play: ``η = W / (π Fg (δ_max − 2Δr))``; the loop area W is the same
+    with or without the zero-force traverse.
+    """
+    clear = np.array([p[0] for p in meas.points])
+    m = np.asarray(model, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.asarray(m[:, 1] / (math.pi * meas.amplitudes * (m[:, 0] - 2.0 * clear)))
+
+
 def residuals(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:
     """Return (model − measured)/σ, shape (n_points, 3); a failed run (NaN) counts 1e3.
 
@@ -181,7 +194,7 @@ def residuals(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:
         r = (model - meas.values) / meas.sigma
         eta_rows = meas.eta_rows
         if np.any(eta_rows):
-            _, eta_model = derived(model[eta_rows], meas.amplitudes[eta_rows])
+            eta_model = _eta_without_free_play(model, meas)[eta_rows]
             r_eta = (eta_model - meas.values[eta_rows, 1]) / meas.sigma[eta_rows, 1]
             r[eta_rows] = 0.0
             r[eta_rows, 1] = r_eta
@@ -432,7 +445,8 @@ def residual_pattern(model: FloatArray, meas: MeasuredFeatures) -> list[str]:
     dm, em = derived(model, amps_all)
     dd, ed = derived(meas.values, amps_all)
     eta_rows = meas.eta_rows
-    ed = np.where(eta_rows, meas.values[:, 1], ed)  # η-only rows state η itself
+    ed = np.where(eta_rows, meas.values[:, 1], ed)  # η-only rows state η itself …
+    em = np.where(eta_rows, _eta_without_free_play(model, meas), em)  # … without free play
     elastic = np.maximum(np.abs(dd - 2.0 * clear_all), 1e-12)  # δ_max without the free play 2Δr
     s_delta_all = meas.sigma[:, 0] / elastic
     s_eta_all = meas.sigma[:, 1] / np.abs(meas.values[:, 1])

@@ -223,3 +223,20 @@ def test_compare_runs_the_models_effects(tmp_path):
     assert with_frame["c"].loop.displacement_mm.max() == pytest.approx(
         bare["c"].loop.displacement_mm.max() + c_f * 400.0, rel=1e-9
     )
+
+
+def test_eta_only_case_is_compared_without_the_free_play(tmp_path):
+    """A stated η (the paper's tables, `hingelab cycle`) excludes the free play 4Δr."""
+    from studies.cmd_compare import run_model_for_cases
+    from validation.compare import compare
+    from validation.measurements import Case, MeasurementSet
+
+    spec, _ = _model_file(tmp_path / "MODEL.toml")
+    case = Case("e", "general", 0.1, 0.0, 400.0, eta=0.05)
+    models, runs = run_model_for_cases(spec, [case])
+    fe_eta = runs[(0.1, 400.0)].metrics()["eta"]
+    (c,) = compare(models, MeasurementSet((case,), tmp_path)).cases
+    # same η up to the chord that closes the loop (0.2 % here); with the free play in δ_max
+    # it would be 40× smaller (δ_max 0.2 mm + 5 µm instead of 5 µm)
+    assert c.model["eta"] == pytest.approx(fe_eta, rel=1e-2)
+    assert c.errors["eta"] == pytest.approx(c.model["eta"] / 0.05 - 1.0, rel=1e-12)
