@@ -122,7 +122,7 @@ def test_same_seed_same_files_other_seed_other_noise(model_path, dataset, tmp_pa
 @pytest.mark.parametrize(
     ("extra", "match"),
     [
-        (["--effect", "face_friction"], r"unknown effect\(s\) \['face_friction'\]"),
+        (["--effect", "bolt_creep"], r"unknown effect\(s\) \['bolt_creep'\]"),
         (["--effect", "frame_compliance:compliance_mm_per_n"], "is not PARAM=NUMBER"),
         (
             ["--effect", "interference:interference_mm=1"],
