@@ -1,12 +1,12 @@
 """``hingelab calibrate``: add effects to the model, fit them, and log the error ledger.
 
 ``hingelab calibrate MODEL.toml DATA_DIR [--mu] --effects NAME[,NAME] --out DIR [--json]``
-fits μ (with ``--mu``, first) and the named effects' parameters (``validation.calibrate``), writes the extended model to
-``DIR/MODEL.toml``, appends baseline → +effect → … to ``DIR/ledger.json`` and
+fits μ (with ``--mu``, first) and the named effects' parameters (``validation.calibrate``),
+writes the extended model to ``DIR/MODEL.toml``, appends baseline → +effect → … to ``DIR/ledger.json`` and
 ``DIR/ledger.csv`` and draws ``DIR/ledger.png`` (error per step, held-out error, noise
 level), then re-runs the comparison with the new model (``hingelab compare``'s work, into
 ``DIR/compare/``: per-case errors and pass/fail, overlays, error map, fingerprint) and
-prints how many cases pass before and after; ``--no-compare`` skips that.
+prints how many cases pass with it; ``--no-compare`` skips that.
 """
 
 from __future__ import annotations
