@@ -37,6 +37,7 @@ import numpy.typing as npt
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from cad.errors import check_range
 from fe.contact_law import ContactStatus
 from fe.contact_newton import (
     Factor,
@@ -78,6 +79,14 @@ class KrylovOptions:
     turn_cos: float = 0.9
     forcing: float = 1e-3
     min_size: int = 0
+
+    def __post_init__(self) -> None:
+        check_range("krylov.max_update", self.max_update, 0.0, 1.0)
+        check_range("krylov.max_iter", self.max_iter, 1, float("inf"))
+        check_range("krylov.refresh_iter", self.refresh_iter, 1, float("inf"))
+        check_range("krylov.turn_cos", self.turn_cos, -1.0, 1.0)
+        check_range("krylov.forcing", self.forcing, 0.0, 1.0, lo_open=True, hi_open=True)
+        check_range("krylov.min_size", self.min_size, 0, float("inf"))
 
 
 class Base(NamedTuple):

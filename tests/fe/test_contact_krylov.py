@@ -273,3 +273,19 @@ def test_block_product_is_w_s_on_the_closed_dofs():
         prob, it, r, w_times=lambda v: contact_krylov._block_product(prob, ws, v)
     )
     np.testing.assert_allclose(lin_block.b, lin.b, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"forcing": 0.0}, r"krylov\.forcing must be in \(0, 1\)"),
+        ({"turn_cos": 1.5}, r"krylov\.turn_cos must be in \[-1, 1\], got 1\.5"),
+        ({"max_iter": 0}, r"krylov\.max_iter"),
+        ({"max_update": -0.1}, r"krylov\.max_update"),
+    ],
+)
+def test_bad_krylov_option_names_itself(kwargs, match):
+    from cad.errors import ParameterError
+
+    with pytest.raises(ParameterError, match=match):
+        KrylovOptions(**kwargs)
