@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import weakref
 
 import numpy as np
 import numpy.typing as npt
@@ -277,6 +278,41 @@ class ClampedFaces:
     wall_s: float
 
 
+_CALIBRATIONS: dict[tuple[int, int, float, float, int, float], tuple[Extended, float]] = {}
+"""(system, configuration, μ, tol, max_iter, footprint) → (extension at the unit overlap, force
+per face); dropped when the configuration is (``weakref.finalize``)."""
+
+
+def _calibrated_extension(
+    system: HingeSystem, cond: Condensed, contact: ContactSettings, radius_ratio: float
+) -> tuple[Extended, float]:
+    """Return the face points appended to ``cond`` and the force per face at the unit overlap.
+
+    Neither depends on the clamp force, so a fit that tries many clamp values (or a run at
+    many amplitudes) condenses and calibrates once per configuration and μ.
+    """
+    key = (id(system), id(cond), contact.mu, contact.tol, contact.max_iter, radius_ratio)
+    if key not in _CALIBRATIONS:
+        geo = face_geometry(system.mesh, radius_ratio)
+        unit = np.zeros((len(geo.slave), 3))
+        unit[:, 0] = -CALIBRATION_OVERLAP_MM
+        ext = extend_condensed(system, cond, geo, unit)
+        m = ext.extra.start
+        w0 = np.array(ext.cond.w0, dtype=np.float64, copy=True)
+        w0[:m, 0] = np.maximum(w0[:m, 0], 0.0)
+        state = unloaded_state(dataclasses.replace(ext.cond, w0=w0), contact)
+        forces = face_normal_forces(ext.cond, np.asarray(state.p)).values()
+        n_unit = float(np.mean(list(forces)))
+        if not n_unit > 0.0:
+            raise MeshQualityError(
+                f"the face footprint carries no clamp: {n_unit:g} N per face at a "
+                f"{CALIBRATION_OVERLAP_MM:g} mm overlap"
+            )
+        _CALIBRATIONS[key] = (ext, n_unit)
+        weakref.finalize(cond, _CALIBRATIONS.pop, key, None)
+    return _CALIBRATIONS[key]
+
+
 def clamped_faces(
     system: HingeSystem,
     cond: Condensed,
@@ -311,21 +347,8 @@ def clamped_faces(
     if not clamp_force_n > 0.0:
         raise ParameterError(f"clamp_force_n must be > 0, got {clamp_force_n}")
     t0 = time.perf_counter()
-    geo = face_geometry(system.mesh, radius_ratio)
-    m_e = len(geo.slave)
-    unit = np.zeros((m_e, 3))
-    unit[:, 0] = -CALIBRATION_OVERLAP_MM
-    ext = extend_condensed(system, cond, geo, unit)
+    ext, n_unit = _calibrated_extension(system, cond, contact, radius_ratio)
     m = ext.extra.start
-    w0 = np.array(ext.cond.w0, dtype=np.float64, copy=True)
-    w0[:m, 0] = np.maximum(w0[:m, 0], 0.0)
-    state = unloaded_state(dataclasses.replace(ext.cond, w0=w0), contact)
-    n_unit = float(np.mean(list(face_normal_forces(ext.cond, np.asarray(state.p)).values())))
-    if not n_unit > 0.0:
-        raise MeshQualityError(
-            f"the face footprint carries no clamp: {n_unit:g} N per face at a "
-            f"{CALIBRATION_OVERLAP_MM:g} mm overlap"
-        )
     overlap = CALIBRATION_OVERLAP_MM * clamp_force_n / n_unit
     w0 = np.array(ext.cond.w0, dtype=np.float64, copy=True)
     w0[m:, 0] = -overlap

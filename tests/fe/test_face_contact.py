@@ -144,3 +144,27 @@ def test_friction_changes_the_overlap_a_clamp_needs(tight):
     dry = clamped_faces(system, cond, 300.0, ContactSettings(mu=0.2)).overlap_mm
     wet = clamped_faces(system, cond, 300.0, ContactSettings(mu=0.0)).overlap_mm
     assert dry < wet
+
+
+def test_calibration_is_made_once_per_configuration_and_mu(tight, monkeypatch):
+    """The unit-overlap solve does not depend on the clamp force: a fit over clamp values
+    (or a run over amplitudes) must not repeat it; another μ or configuration must."""
+    import fe.face_contact as fc
+
+    system, cond = tight
+    calls = []
+    real = fc.unloaded_state
+
+    def counting(c, contact):
+        calls.append(contact.mu)
+        return real(c, contact)
+
+    monkeypatch.setattr(fc, "unloaded_state", counting)
+    own = dataclasses.replace(cond)  # a configuration no other test has calibrated
+    a = clamped_faces(system, own, 100.0, ContactSettings(mu=0.2))
+    b = clamped_faces(system, own, 400.0, ContactSettings(mu=0.2))
+    assert calls == [0.2]
+    assert b.overlap_mm == pytest.approx(4 * a.overlap_mm, rel=1e-12)
+    clamped_faces(system, own, 400.0, ContactSettings(mu=0.3))
+    clamped_faces(system, dataclasses.replace(cond), 400.0, ContactSettings(mu=0.2))
+    assert calls == [0.2, 0.3, 0.2]
