@@ -115,7 +115,7 @@ def calibrate(
             mu_fold = _fit_mu(ev, meas, ~test, maxiter=8)
             held += chi2(ev.features({}, mu=mu_fold), meas, test)
         spec = dataclasses.replace(spec, cycle=dataclasses.replace(spec.cycle, mu=mu))
-        ev.spec, ev.cycle = spec, dataclasses.replace(ev.cycle, mu=mu)  # runs cached by μ
+        ev.set_mu(spec)
         base = ev.features({})
         c = chi2(base, meas)
         held = max(held, c)

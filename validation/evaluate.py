@@ -74,6 +74,15 @@ class ModelEvaluator:
         self.cycle_s = 0.0
         self.setup_s = 0.0
 
+    def set_mu(self, spec: ModelSpec) -> None:
+        """Make ``spec`` (the same model with another μ) the model evaluated from now on.
+
+        μ changes no operator, and runs are cached by μ, so the meshes, factorisations,
+        condensations and runs already made stay valid.
+        """
+        self.spec = spec
+        self.cycle = dataclasses.replace(self.cycle, mu=spec.cycle.mu)
+
     def _system(self, clearance: float) -> tuple[Any, Any]:
         if clearance not in self._systems:
             from cad.errors import ParameterError

@@ -66,3 +66,18 @@ def test_calibrate_refuses_unknown_or_present_effects():
         calibrate(spec, data, ["nope"])
     with pytest.raises(ParameterError, match="already in the model"):
         calibrate(spec, data, ["frame_compliance"])
+
+
+def test_evaluator_set_mu_keeps_its_increments_and_takes_the_new_mu():
+    import dataclasses
+
+    from cad.general import GeneralHingeParams
+    from validation.evaluate import ModelEvaluator
+    from validation.model_file import ModelSpec
+
+    spec = ModelSpec("general", GeneralHingeParams())
+    ev = ModelEvaluator(spec, [(0.0, 100.0)], increments_per_stage=6)
+    ev.set_mu(dataclasses.replace(spec, cycle=dataclasses.replace(spec.cycle, mu=0.35)))
+    assert ev.cycle.mu == 0.35
+    assert ev.spec.cycle.mu == 0.35
+    assert ev.cycle.increments_per_stage == 6  # the diagnosis protocol is kept
