@@ -36,7 +36,7 @@ from cad.errors import ConvergenceError, check_range
 from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
 from fe.contact_geometry import contact_geometry, split_window
 from fe.cycle_result import CycleResult, Increment
-from fe.hinge_system import Condensed, HingeSystem, condense, displacement, outside_gaps
+from fe.hinge_system import Condensed, HingeSystem, condense, displacements, outside_gaps
 from fe.protocol import DEFAULT_MU, CycleSettings, stage_targets
 
 logger = logging.getLogger(__name__)
@@ -146,6 +146,7 @@ def _run(
         )
 
     f_prev = 0.0
+    peaks: list[int] = []  # increments at the end of a stage, where the window is checked
     for stage, (f_from, f_to, n) in enumerate(settings.stages()):
         previous: tuple[float, ContactState] | None = None  # no extrapolation across a reversal
         for target in stage_targets(f_from, f_to, n, settings.grading):
@@ -166,39 +167,53 @@ def _run(
             states.append(new)
             previous, state, f_prev = (f_prev, state), new, float(target)
             if target == f_to:
-                _check_window(system, cond, state, len(incs) - 1, float(target), partial)
+                peaks.append(len(incs) - 1)
             if progress is not None:
                 progress(min(len(incs), total), total)
     result = partial()
     object.__setattr__(result, "timings_s", {"contact": time.perf_counter() - t1})
+    _check_window(system, result, peaks)
     return result
 
 
-def _check_window(
-    system: HingeSystem,
-    cond: Condensed,
-    state: ContactState,
-    index: int,
-    force: float,
-    partial: Callable[[], CycleResult],
-) -> None:
-    """Raise if a point outside the contact window has closed (the window was too small)."""
-    if cond.outside is None:
+def _check_window(system: HingeSystem, result: CycleResult, peaks: list[int]) -> None:
+    """Raise if a point outside the contact window has closed (the window was too small).
+
+    Checked at the stage ends (the load peaks), all at once after the cycle: recovering
+    displacements needs the sparse factors, which a large mesh holds one at a time
+    (``HingeSystem.low_memory``), so one batch costs one factorisation per part.
+    """
+    peaks = [k for k in peaks if result.configs[result.increments[k].side].outside is not None]
+    if not peaks:
         return
-    u = displacement(system, cond, np.asarray(state.p), np.asarray(state.alpha))
-    gaps = outside_gaps(cond, u)
-    i = int(np.argmin(gaps))
-    if gaps[i] < 0.0:
-        x = np.asarray(system.mesh.nodes)[cond.outside.slave[i]]
-        raise ConvergenceError(
-            f"contact window too small: a point outside it (θ = {np.degrees(np.arctan2(x[1], x[0])):.1f}°, "
-            f"z = {x[2]:.2f} mm) closed by {-gaps[i] * 1e3:.3f} µm at F = {force:g} N; "
-            "raise CycleSettings.contact_window",
-            increment=index,
-            iteration=0,
-            residual=float(-gaps[i]),
-            partial=partial(),
-        )
+    fields = displacements(
+        system,
+        [
+            (
+                result.configs[result.increments[k].side],
+                np.asarray(result.states[k].p),
+                np.asarray(result.states[k].alpha),
+            )
+            for k in peaks
+        ],
+    )
+    for k, u in zip(peaks, fields, strict=True):
+        cond = result.configs[result.increments[k].side]
+        gaps = outside_gaps(cond, u)
+        i = int(np.argmin(gaps))
+        if gaps[i] < 0.0:
+            assert cond.outside is not None
+            x = np.asarray(system.mesh.nodes)[cond.outside.slave[i]]
+            theta = np.degrees(np.arctan2(x[1], x[0]))
+            raise ConvergenceError(
+                f"contact window too small: a point outside it (θ = {theta:.1f}°, "
+                f"z = {x[2]:.2f} mm) closed by {-gaps[i] * 1e3:.3f} µm at "
+                f"F = {result.increments[k].force_n:g} N; raise CycleSettings.contact_window",
+                increment=k,
+                iteration=0,
+                residual=float(-gaps[i]),
+                partial=result,
+            )
 
 
 SEED_GAP_MM = 1e-6

@@ -38,7 +38,7 @@ import hashlib
 import logging
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -59,6 +59,17 @@ IntArray = npt.NDArray[np.int64]
 
 BLOCK_RHS = 128
 """Right-hand sides per block solve when condensing (see benchmarks/bench_assembly.py)."""
+
+RECOVER_BLOCK = 32
+"""Right-hand sides per block solve when recovering displacements (bounds the work memory)."""
+
+LOW_MEMORY_DOF = 400_000
+"""Above this many DOF, ``build_system`` holds one part's sparse factor at a time.
+
+At refinement 2 (1.07 M DOF) the lug (449k DOF) and pin (615k DOF) factors together with
+the dense contact operators exceeded 24 GB; one at a time they fit. The price is a
+refactorisation per displacement recovery, so recover many states at once
+(``displacements``)."""
 
 
 def outside_gaps(cond: Condensed, u: FloatArray) -> FloatArray:
@@ -95,6 +106,8 @@ class HingeSystem:
         lug_factor: Factorisation of K on ``lug_free`` (made on first use).
         pin_factor: Factorisation of K on ``pin_free`` (made on first use).
         timings_s: Wall time of assembly and factorisation [s].
+        low_memory: Release each part's sparse factor right after using it, so that at most
+            one is alive (see ``LOW_MEMORY_DOF``); results are identical.
     """
 
     mesh: HexMesh
@@ -110,6 +123,7 @@ class HingeSystem:
     cache_dir: Path | None = None
     _compliance: dict[str, tuple[FloatArray, FloatArray]] = field(default_factory=dict, repr=False)
     _factors: dict[str, Factorization] = field(default_factory=dict, repr=False)
+    low_memory: bool = False
 
     @property
     def lug_factor(self) -> Factorization:
@@ -135,6 +149,30 @@ class HingeSystem:
             self.timings_s["factorisation"] = self.timings_s.get("factorisation", 0.0) + dt
             logger.info("factorised the %s (%d DOF) in %.2f s", name, len(free), dt)
         return self._factors[name]
+
+    def solve_parts(self, f: FloatArray) -> FloatArray:
+        """Solve ``K u = f`` on each part's free DOFs (zero at supports and grips).
+
+        One part at a time, in blocks of ``RECOVER_BLOCK`` right-hand sides, so that in
+        low-memory mode each factor is made once per call and released before the next.
+
+        Args:
+            f: Nodal forces, shape (n_dof,) or (n_dof, k) [N].
+
+        Returns:
+            Displacements of the same shape [mm] (pin on its 3-2-1 supports, no rigid part).
+        """
+        f2 = f.reshape(f.shape[0], -1)
+        u = np.zeros(f2.shape)
+        for name, free in (("lug", self.lug_free), ("pin", self.pin_free)):
+            factor = self._factor(name, free)
+            for start in range(0, f2.shape[1], RECOVER_BLOCK):
+                cols = slice(start, start + RECOVER_BLOCK)
+                u[free, cols] = factor.solve(f2[free, cols]).reshape(len(free), -1)
+            if self.low_memory:
+                del self._factors[name]
+                del factor
+        return u.reshape(f.shape)
 
     def nodal_compliance(self) -> tuple[FloatArray, FloatArray]:
         """Return the compliances at the slave and master nodes, computed once and kept.
@@ -259,6 +297,7 @@ def build_system(
         master_nodes,
         {"assembly": t_asm, "factorisation": 0.0},
         cache_dir=cache_dir,
+        low_memory=n_dof > LOW_MEMORY_DOF,
         kind=kind,
     )
 
@@ -359,12 +398,29 @@ def displacement(
         p: Contact forces, shape (m, 3) [N].
         alpha: Rigid amplitudes (pin modes, grip), shape (7,).
     """
-    f = cond.C.T @ np.ravel(p)  # nodal contact forces, shape (n_dof,)
-    u = np.zeros(system.n_dof)
-    u[system.lug_free] = system.lug_factor.solve(f[system.lug_free])
-    u[system.pin_free] = system.pin_factor.solve(f[system.pin_free])
-    u += system.pin_R @ alpha[:6] + system.u_grip * alpha[6]
-    return u.reshape(-1, 3)
+    return displacements(system, [(cond, p, alpha)])[0]
+
+
+def displacements(
+    system: HingeSystem, states: Sequence[tuple[Condensed, FloatArray, FloatArray]]
+) -> list[FloatArray]:
+    """Recover the displacement fields of many states with one solve per part and block.
+
+    Args:
+        system: The factorised hinge.
+        states: (condensed configuration, contact forces (m, 3) [N], rigid amplitudes (7,))
+            per state.
+
+    Returns:
+        One nodal displacement field per state, shape (n_nodes, 3) [mm].
+    """
+    if not states:
+        return []
+    f = np.column_stack([cond.C.T @ np.ravel(p) for cond, p, _ in states])
+    u = system.solve_parts(f)  # (n_dof, k)
+    rigid = np.column_stack([np.asarray(a, dtype=np.float64) for _, _, a in states])  # (7, k)
+    u += system.pin_R @ rigid[:6] + np.outer(system.u_grip, rigid[6])
+    return [u[:, j].reshape(-1, 3) for j in range(len(states))]
 
 
 def support_reaction(system: HingeSystem, cond: Condensed, p: FloatArray, u: FloatArray) -> float:

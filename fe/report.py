@@ -12,7 +12,7 @@ import numpy as np
 from fe.assembly import stress_field
 from fe.cycle import CycleResult
 from fe.element import ElementType, von_mises
-from fe.hinge_system import HingeSystem, displacement
+from fe.hinge_system import HingeSystem, displacements
 
 LOOP_COLUMNS = ("force_N", "displacement_mm", "stage", "increment", "side")
 """Columns of loop.csv; the first two are those of a measured loop."""
@@ -113,10 +113,20 @@ def write_time_series(
         if k % every == 0 or k == len(result.increments) - 1
     ]
     entries = []
-    for k in chosen:
+    fields = displacements(  # one batch: a large mesh refactorises per call (low_memory)
+        system,
+        [
+            (
+                result.configs[result.increments[k].side],
+                np.asarray(result.states[k].p),
+                np.asarray(result.states[k].alpha),
+            )
+            for k in chosen
+        ],
+    )
+    for k, u in zip(chosen, fields, strict=True):
         inc, state = result.increments[k], result.states[k]
         cond = result.configs[inc.side]
-        u = displacement(system, cond, np.asarray(state.p), np.asarray(state.alpha))
         sigma = stress_field(mesh, u, kind)
         pressure = np.zeros(mesh.n_nodes)
         slip = np.zeros(mesh.n_nodes)
