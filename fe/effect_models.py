@@ -1,0 +1,323 @@
+"""The candidate effects: each a mechanism with bounded parameters and a stated fingerprint.
+
+Registered, in application order, in ``fe.effects.REGISTRY``; the fingerprint tables in the
+docstrings are measured as described in ``fe.effects``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from fe.effect_base import (
+    Effect,
+    EffectContext,
+    FloatArray,
+    ParamSpec,
+    Values,
+    add_diagonal,
+    map_configs,
+)
+from fe.face_contact import FOOTPRINT_RADIUS_RATIO, clamped_faces
+from fe.hinge_system import Condensed
+
+
+@dataclass(frozen=True)
+class FrameCompliance(Effect):
+    """Series compliance of the test frame, load cell, grips and clevis pins.
+
+    MECHANISM: the crosshead (or LVDT across the grips) measures the hinge in series with
+    everything else in the load path; a linear spring ``C_f``: ``δ ← δ + C_f F``. It acts
+    after the solve (``post``), so ``W`` and every factorisation are untouched.
+
+    FINGERPRINT (C_f = 2e-5 mm/N): the loop is sheared — every point moves by
+    ``C_f F``, the loop area W_cycle is unchanged (∮F d(C_f F) = 0), δ(+Fg) grows by
+    exactly ``C_f Fg`` and ``η`` falls by ``δ_max / (δ_max + C_f Fg)``:
+
+    =======  =====  =======  =========  ==========  ============
+    Δr mm    Fg N   η base   η effect   δ+ base µm  δ+ effect µm
+    =======  =====  =======  =========  ==========  ============
+    0        100    0.01376  0.00390    0.96        2.96
+    0        400    0.01376  0.00390    3.84        11.84
+    0.1      100    0.00073  0.00034    2.09        4.09
+    0.1      400    0.00128  0.00054    7.33        15.33
+    =======  =====  =======  =========  ==========  ============
+
+    η vs amplitude: at Δr = 0 the model stays homogeneous: η is independent of Fg, only
+    lowered (×0.28 here). With Δr = 0.1 mm η falls by ×0.47 at 100 N and ×0.42 at 400 N,
+    so the η(Fg) curve keeps its shape and is scaled down; the loop's area is unchanged.
+    """
+
+    name: str = "frame_compliance"
+    params: tuple[ParamSpec, ...] = (
+        ParamSpec(
+            "compliance_mm_per_n", 0.0, 1e-4, 2e-5, "mm/N", "series compliance of frame and grips"
+        ),
+    )
+
+    def post(self, force_n: FloatArray, disp_mm: FloatArray, values: Values) -> FloatArray:
+        """Return ``δ + C_f F``, shape (n,) [mm]."""
+        return np.asarray(disp_mm, dtype=np.float64) + values["compliance_mm_per_n"] * np.asarray(
+            force_n, dtype=np.float64
+        )
+
+
+@dataclass(frozen=True)
+class _InterfaceCompliance(Effect):
+    """An interface compliance per unit area added to some local components of ``W``.
+
+    ``W_kk,ii += c / A_i`` for every point i and each component k in ``components``
+    (0 normal, 1 and 2 tangential); the parameter is ``compliance_mm3_per_n``.
+    """
+
+    components: tuple[int, ...] = ()
+
+    def apply(
+        self, configs: Mapping[int, Condensed], values: Values, ctx: EffectContext
+    ) -> dict[int, Condensed]:
+        """Add ``c / A_i`` to each point's diagonal entries of ``W`` in ``components``."""
+        c = values["compliance_mm3_per_n"]
+        if c == 0.0:
+            return dict(configs)
+        return map_configs(configs, lambda cond: add_diagonal(cond, self.components, c))
+
+
+@dataclass(frozen=True)
+class RoughnessSoftening(_InterfaceCompliance):
+    """Contact softening by surface roughness: a linear pressure–overclosure law.
+
+    MECHANISM: asperities of the turned pin and reamed holes deform before the nominal
+    surfaces meet; to first order a normal interface stiffness per unit area ``k_n``
+    (``p = k_n h`` for an overclosure h), i.e. a compliance ``c_n = 1/k_n`` [mm³/N] in
+    series with the bulk at every contact point: ``W_nn,ii += c_n / A_i`` (A_i the
+    slave nodal area). Only the diagonal normal entries change; no refactorisation. Linear,
+    so the zero-clearance model stays positively homogeneous (an exponential law would
+    break that, but needs the contact solver's normal law changed: not done).
+
+    FINGERPRINT (c_n = 2e-4 mm³/N, i.e. k_n = 5000 N/mm³): a softer loop (δ(+Fg) ×1.7 at
+    Δr = 0, ×2.2–2.6 at Δr = 0.1 mm) with a much larger area: the compliant layer lets
+    the stick zones slip more, so η rises (×2.5 at Δr = 0, ×4.8–5.1 at Δr = 0.1 mm). The
+    energy balance still closes to < 1e-12:
+
+    =======  =====  =======  =========  ==========  ============
+    Δr mm    Fg N   η base   η effect   δ+ base µm  δ+ effect µm
+    =======  =====  =======  =========  ==========  ============
+    0        100    0.01376  0.03441    0.96        1.63
+    0        400    0.01376  0.03441    3.84        6.53
+    0.1      100    0.00073  0.00350    2.09        5.34
+    0.1      400    0.00128  0.00647    7.33        16.29
+    =======  =====  =======  =========  ==========  ============
+
+    η vs amplitude: flat at Δr = 0 (homogeneous, as the baseline); with clearance η still
+    rises with Fg as in the baseline (0.0035 → 0.0065 for 0.00073 → 0.00128): the law is
+    linear, so it raises the level, not the amplitude slope.
+    """
+
+    name: str = "roughness_softening"
+    params: tuple[ParamSpec, ...] = (
+        ParamSpec(
+            "compliance_mm3_per_n",
+            0.0,
+            1e-3,
+            2e-4,
+            "mm³/N",
+            "normal interface compliance per unit area, 1/k_n (k_n ≥ 1000 N/mm³)",
+        ),
+    )
+
+    components: tuple[int, ...] = (0,)
+
+
+@dataclass(frozen=True)
+class TangentialCompliance(_InterfaceCompliance):
+    """Shear compliance of the asperity layer (pre-sliding microslip of the asperities).
+
+    MECHANISM: before the nominal surfaces slip, the asperity junctions shear elastically:
+    a tangential interface stiffness per unit area ``k_t``, compliance ``c_t = 1/k_t``
+    [mm³/N]: ``W_tt,ii += c_t / A_i`` in both tangential directions. No refactorisation.
+
+    FINGERPRINT (c_t = 2e-4 mm³/N): the loop barely softens (δ(+Fg) +0.5–1 %) but
+    thins: the compliant layer takes up the tangential motion elastically, the surfaces
+    stick where they slipped, and η falls ×0.24 at Δr = 0; with Δr = 0.1 mm, where the
+    contact arc is narrow, slip almost vanishes (η ≈ 0 at 100 N, 0.00004 at 400 N):
+
+    =======  =====  =======  =========  ==========  ============
+    Δr mm    Fg N   η base   η effect   δ+ base µm  δ+ effect µm
+    =======  =====  =======  =========  ==========  ============
+    0        100    0.01376  0.00329    0.96        0.97
+    0        400    0.01376  0.00329    3.84        3.86
+    0.1      100    0.00073  0.00000    2.09        2.11
+    0.1      400    0.00128  0.00004    7.33        7.39
+    =======  =====  =======  =========  ==========  ============
+
+    η vs amplitude: flat at Δr = 0 (linear, homogeneous). With clearance η ≈ 0 at low Fg
+    and rises only once the arc slips: a threshold in η(Fg), like a preload, but with an
+    almost unchanged stiffness.
+    """
+
+    name: str = "tangential_compliance"
+    params: tuple[ParamSpec, ...] = (
+        ParamSpec(
+            "compliance_mm3_per_n",
+            0.0,
+            1e-3,
+            2e-4,
+            "mm³/N",
+            "tangential interface compliance per unit area, 1/k_t",
+        ),
+    )
+
+    components: tuple[int, ...] = (1, 2)
+
+
+@dataclass(frozen=True)
+class Interference(Effect):
+    """An initial radial pin–hole interference (a press or shrink fit, or a pin on the high side).
+
+    MECHANISM: the pin is larger than the hole by ``δ_i`` (radial): the normal gap at every
+    contact point starts at ``g0 − δ_i`` (``w0_n`` and ``geo.g0`` both shifted, so the seed
+    of a touching configuration sees it too). The overlap is resolved in the first load
+    increment from zero, which converges without a separate ramp (checked by the tests),
+    as a radial prestress that clamps the pin before any load. With Δr > 0 the same
+    overlap is applied in each touching configuration: it then stands for a local
+    interference at the bearing line (out-of-roundness, burr), not a press fit.
+
+    FINGERPRINT (δ_i = 1e-3 mm; δ measured from the prestressed zero δ₀ =
+    0.84 δ_i, see ``fe.effects.prestressed_zero``): a stiffer loop (δ(+Fg) ×0.54 at 100 N, ×0.56 at
+    400 N), almost closed at 100 N (the clamp keeps the contact stuck: η ×0.17) and wider
+    than the baseline at 400 N (η ×1.42). The first loop after the initial loading does
+    not quite close (1.1 % of δ_max at 400 N, 6 increments): the stick zones ratchet.
+    Refused with clearance (an interference is a negative clearance):
+
+    =======  =====  =======  =========  ==========  ============
+    Δr mm    Fg N   η base   η effect   δ+ base µm  δ+ effect µm
+    =======  =====  =======  =========  ==========  ============
+    0        100    0.01376  0.00238    0.96        0.52
+    0        400    0.01376  0.01957    3.84        2.16
+    =======  =====  =======  =========  ==========  ============
+
+    η vs amplitude: the clamp does not scale with Fg, so the model is no longer
+    homogeneous: η rises steeply with Fg (0.0024 → 0.0196 from 100 to 400 N), the
+    amplitude dependence the zero-clearance baseline lacks. η depends on Fg/δ_i only
+    (both scale together); at δ_i = 1e-4 mm, 100 N already lies past the peak (η = 0.027, 6 increments).
+    """
+
+    name: str = "interference"
+    params: tuple[ParamSpec, ...] = (
+        ParamSpec("interference_mm", 0.0, 0.01, 1e-3, "mm", "initial radial pin–hole overlap"),
+    )
+    zero_clearance_reason: str = "an interference is a negative clearance"
+
+    def apply(
+        self, configs: Mapping[int, Condensed], values: Values, ctx: EffectContext
+    ) -> dict[int, Condensed]:
+        """Shift every point's initial normal gap by ``−δ_i``."""
+        d = values["interference_mm"]
+        if d == 0.0:
+            return dict(configs)
+        self.refuse_clearance(configs, "interference_mm", d)
+
+        def change(cond: Condensed) -> Condensed:
+            w0 = np.array(cond.w0, dtype=np.float64, copy=True)
+            w0[:, 0] -= d
+            geo = dataclasses.replace(cond.geo, g0=np.asarray(cond.geo.g0) - d)
+            return dataclasses.replace(cond, geo=geo, w0=w0)
+
+        return map_configs(configs, change)
+
+
+@dataclass(frozen=True)
+class FaceFriction(Effect):
+    """Friction between the tang and clevis faces under the pin's axial clamp.
+
+    MECHANISM: a bolt (or a pin with a nut or a swaged head) clamps the clevis arms onto
+    the tang with a preload N per face. The faces then carry part of the load in
+    parallel to the pin, by friction: while they stick the hinge is stiffer and loses
+    less; once the load exceeds what they hold (about 2μN), they slip and add
+    dissipation. Modelled as extra frictional contact points in the condensed problem
+    (``fe.face_contact``): the tang's nodes on both faces inside a washer footprint
+    (r ≤ ``FOOTPRINT_RADIUS_RATIO`` × hole radius), each against the arm's inner face
+    (``n = ∓e_z``), the same Coulomb μ as the pin, coupled to the hole points through
+    the lugs' compliance. Their initial normal displacement is an overlap
+    ``w0_n = −δ_c`` (the 0.2 mm running gap ignored over the footprint, as if shimmed),
+    with δ_c set so that the face normal forces at F = 0 sum to ``clamp_force_n`` on each
+    face (``clamped_faces``: one unloaded solve with the cycle's μ; the problem is
+    homogeneous, so the conversion is exact). The bolt is not a body: the clamp is held
+    by the arms' spread instead of the bolt's stretch, so how the face force varies
+    during the cycle follows the arms' stiffness, not a bolt's. At F = 0 the clamp also
+    presses the holes onto the pin a little (40 N summed over the pin points at 300 N).
+    The clamp is applied with the first load increment (the cycle has no separate
+    preload stage); the prestressed zero δ₀ (``fe.effects.prestressed_zero``)
+    is the zero of the loop. The energy balance (friction work at pin and face points
+    against the loop area) still closes to round-off. With clamp 0 the faces stay apart
+    (the baseline exactly).
+
+    FINGERPRINT (N = 300 N per face, δ measured from the prestressed zero δ₀): a stiffer
+    loop (δ(+Fg) ×0.71 at 100 N, ×0.78 at 400 N: the faces hold μN = 60 N each before
+    slipping), with less loss at low Fg once shaken down and more at high Fg, where
+    the faces slip (each face dissipates about 4μN·s per cycle for a slip amplitude s).
+    The first loop after the initial loading does not close at 100 N (−14 % of δ_max
+    at 40 increments, −4 % at 400 N): the tractions the clamp locks into the faces
+    (the tang's Poisson expansion resisted by friction) shake down during that cycle,
+    so its area is 4× the settled one. The table is that first loop (the protocol's
+    ``n_cycles = 1``); with ``n_cycles = 2`` the loop closes (0.3 %) and η is 0.0083 at
+    100 N and 0.0575 at 400 N (40 increments). Applying the clamp before the load
+    instead of with the first increment changes η by < 5 % (6 increments, measured):
+
+    =======  =====  =======  =========  ==========  ============
+    Δr mm    Fg N   η base   η effect   δ+ base µm  δ+ effect µm
+    =======  =====  =======  =========  ==========  ============
+    0        100    0.01376  0.03164    0.96        0.68
+    0        400    0.01376  0.06059    3.84        2.99
+    =======  =====  =======  =========  ==========  ============
+
+    η vs amplitude: the clamp does not scale with Fg, so the model is no longer
+    homogeneous: η rises with Fg (0.032 → 0.061 from 100 to 400 N; shaken down
+    0.0083 → 0.0575, below the baseline's 0.0138 at 100 N and 4× above it at 400 N) and
+    the secant stiffness falls (the faces' share of the load saturates at 2μN).
+    With μ = 0 the faces carry no load in parallel and there is no loop: η = 0.0006 at
+    6 increments, 0.00002 at 40, the open/close work of points whose status changes
+    inside an increment (first order in the step; the baseline has none, its active set
+    is fixed along each half cycle).
+
+    Refused with clearance: the cycle switches between two touching configurations with
+    the clevis shifted by ±2Δr relative to the tang, so the faces would lose their
+    friction history (their stick reference) across the free play, which they would
+    in fact cross slipping at ±2μN: a loop feature the two-configuration model cannot
+    represent. That needs one configuration for the whole cycle (a large-slip face
+    contact), not done.
+    """
+
+    name: str = "face_friction"
+    params: tuple[ParamSpec, ...] = (
+        ParamSpec(
+            "clamp_force_n",
+            0.0,
+            2000.0,
+            300.0,
+            "N",
+            "axial clamp (bolt preload) pressing each clevis arm onto the tang",
+        ),
+    )
+    zero_clearance_reason: str = (
+        "the free play between the two touching configurations would drop the faces' "
+        "friction history"
+    )
+
+    def apply(
+        self, configs: Mapping[int, Condensed], values: Values, ctx: EffectContext
+    ) -> dict[int, Condensed]:
+        """Append the clamped face points to the (single) configuration."""
+        clamp = values["clamp_force_n"]
+        if clamp == 0.0:
+            return dict(configs)
+        self.refuse_clearance(configs, "clamp_force_n", clamp)
+        return map_configs(
+            configs,
+            lambda cond: (
+                clamped_faces(ctx.system, cond, clamp, ctx.contact(), FOOTPRINT_RADIUS_RATIO).cond
+            ),
+        )
