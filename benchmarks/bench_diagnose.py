@@ -5,7 +5,7 @@ Two modes:
 * ``time`` (default): a 9-case set (Δr 0, 0.1, 0.2 mm × Fg 100, 250, 400 N) made by
   ``validation.synth`` with a hidden tangential compliance on a finer mesh, diagnosed
   against the whole registry with the default ``DiagnoseSettings``; the model is the
-  tests' coarse one (``MeshSettings(size_mm=4.0, contact_size_mm=2.0)``). Prints wall time (limit: 15 min), cycles
+  tests' coarse one (``MeshSettings.coarse()``). Prints wall time (limit: 15 min), cycles
   run, set-up (mesh, factorisation, condensation) vs cycle time, peak memory, verdict and
   the fitted value against the hidden one.
 * ``check``: the decision rules (Bonferroni F-test, held-out folds, the 90 % "explained"
@@ -52,7 +52,7 @@ def _spec() -> Any:
     return ModelSpec(
         "general",
         GeneralHingeParams(),
-        MeshSettings(size_mm=4.0, contact_size_mm=2.0),
+        MeshSettings.coarse(),
         CycleSettings(mu=0.2, increments_per_stage=8, clearance_increments=16),
     )
 

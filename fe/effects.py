@@ -18,7 +18,7 @@ once per mesh and clearance, reusable for every amplitude and effect), runs
 metrics (η, U_max, the energy balance) are consistent.
 
 Fingerprints: each effect's docstring gives a table measured on the coarse test mesh
-(``MeshSettings(size_mm=4.0, contact_size_mm=2.0)``, 6 increments per stage, μ = 0.2),
+(``MeshSettings.coarse()``: size 4, contact 2 mm; 6 increments per stage, μ = 0.2),
 baseline vs effect, η and δ(+Fg) [µm] at Fg = 100 and 400 N and Δr = 0 and 0.1 mm
 (``tests/fe/test_effects.py::fingerprint_table`` regenerates it; the slow test
 ``test_docstring_fingerprints_are_measured`` checks every row to 2 %), each effect at its

@@ -47,9 +47,7 @@ def _spec(quick: bool) -> Any:
     from validation.model_file import ModelSpec
 
     if quick:
-        return ModelSpec(
-            "general", GeneralHingeParams(), MeshSettings(size_mm=4.0, contact_size_mm=2.0)
-        )
+        return ModelSpec("general", GeneralHingeParams(), MeshSettings.coarse())
     return ModelSpec("general", GeneralHingeParams())
 
 

@@ -30,7 +30,7 @@ from mesh.settings import MeshSettings
 pytest.importorskip("gmsh")
 from mesh.build import mesh_hinge
 
-COARSE = MeshSettings(size_mm=4.0, contact_size_mm=2.0)
+COARSE = MeshSettings.coarse()
 P = GeneralHingeParams()
 
 

@@ -35,7 +35,7 @@ def test_gaps_are_exact_and_projections_land_on_the_master():
     c = 0.2
     mesh, _ = mesh_hinge(
         make_general_hinge(GeneralHingeParams(clearance_mm=c)),
-        MeshSettings(size_mm=4.0, contact_size_mm=2.0),
+        MeshSettings.coarse(),
     )
     geo = contact_geometry(mesh, {p.name: np.zeros(3) for p in mesh.pairs})
     assert np.allclose(geo.g0, c, atol=1e-12)  # from the exact cylinders, not the facets
@@ -58,7 +58,7 @@ def test_gaps_are_exact_and_projections_land_on_the_master():
 def test_compliance_cache_is_keyed_by_mesh_content(tmp_path):
     from fe.hinge_system import build_system
 
-    settings = MeshSettings(size_mm=4.0, contact_size_mm=2.0)
+    settings = MeshSettings.coarse()
     mesh, _ = mesh_hinge(make_general_hinge(GeneralHingeParams()), settings)
     first = build_system(mesh, cache_dir=tmp_path)
     s1, m1 = first.nodal_compliance()
@@ -82,7 +82,7 @@ def test_low_memory_mode_holds_one_factor_and_recovers_the_same_fields():
     from fe.cycle import CycleSettings, run_cycle
     from fe.hinge_system import build_system, displacement, displacements
 
-    settings = MeshSettings(size_mm=4.0, contact_size_mm=2.0)
+    settings = MeshSettings.coarse()
     mesh, _ = mesh_hinge(make_general_hinge(GeneralHingeParams()), settings)
     kept = build_system(mesh)
     assert not kept.low_memory  # 29k DOF: below the threshold

@@ -26,7 +26,7 @@ def _model_file(path):
     spec = ModelSpec(
         "general",
         GeneralHingeParams(),
-        MeshSettings(size_mm=4.0, contact_size_mm=2.0),
+        MeshSettings.coarse(),
         CycleSettings(mu=0.2, increments_per_stage=6, clearance_increments=6),
     )
     return spec, write_model(spec, path)

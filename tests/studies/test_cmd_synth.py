@@ -39,7 +39,7 @@ def model_path(tmp_path_factory):
     spec = ModelSpec(
         "general",
         GeneralHingeParams(),
-        MeshSettings(size_mm=4.0, contact_size_mm=2.0),
+        MeshSettings.coarse(),
         CycleSettings(mu=0.2, increments_per_stage=6, clearance_increments=6),
     )
     return write_model(spec, tmp_path_factory.mktemp("synth") / "MODEL.toml")

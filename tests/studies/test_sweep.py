@@ -11,7 +11,7 @@ from rsm import trace
 from studies.sweep import SweepSettings, run_sweep
 
 pytest.importorskip("gmsh")
-COARSE = MeshSettings(size_mm=4.0, contact_size_mm=2.0)
+COARSE = MeshSettings.coarse()
 
 
 def rows(path):

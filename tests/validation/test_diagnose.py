@@ -182,7 +182,7 @@ def spec():
     return ModelSpec(
         "general",
         GeneralHingeParams(),
-        MeshSettings(size_mm=4.0, contact_size_mm=2.0),
+        MeshSettings.coarse(),
         CycleSettings(mu=0.2, increments_per_stage=8, clearance_increments=16),
     )
 

@@ -26,7 +26,7 @@ def general_spec():
             pin_length_mm=22.0,
             lug_material=Material("7075-T6", 71_700.0, 0.33),
         ),
-        MeshSettings(size_mm=4.0, contact_size_mm=2.0, part_sizes_mm=(("pin", 1.5), ("tang", 3.0))),
+        MeshSettings.coarse(part_sizes_mm=(("pin", 1.5), ("tang", 3.0))),
         CycleSettings(
             amplitude_n=250.0, mu=0.15, increments_per_stage=6, clearance_increments=6, tol=1e-11
         ),

@@ -52,7 +52,7 @@ def test_parse_design():
 
 @pytest.mark.parametrize(
     "mesh",
-    [MeshSettings(size_mm=4.0, contact_size_mm=2.0), MeshSettings(), MeshSettings(arc_grading=1.0)],
+    [MeshSettings.coarse(), MeshSettings(), MeshSettings(arc_grading=1.0)],
     ids=["coarse", "default", "uniform-arcs"],
 )
 def test_synth_mesh_is_finer_and_graded_differently(mesh):
