@@ -28,6 +28,10 @@ Measured (default hinge, zero clearance, 2 shared cores, wall s as LU / KRYLOV):
     level 1, --stage0 10 --stage1 4 (m = 3136): before 65.8 / 62.5, after 50.7 / 54.0
     level 1, the same with 2 BLAS threads:      after 74.7 / 77.7
 
+    level 1, the same, dense LUs ≥ 2000 unknowns on 2 threads (--lu-threads 1 2, quiet
+    machine, same process): LU path 65.9 → 48.9, KRYLOV 56.9 → 54.3
+    level 0, whole cycle, --lu-threads 1 2 twice: 15.9-18.8 / 17.6-20.5 either way (noise)
+
 Before: column-gather Jacobian, about three W products per Newton iteration, W block and
 the finiteness check redone per increment; after: row-gather Jacobian, one W product
 per iteration, block kept across increments. The two paths tie within the noise of a
@@ -45,6 +49,7 @@ import tracemalloc
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from fe import contact_newton
 from fe.contact import ContactSettings, ContactState, LinearSolver, solve_increment
 
 E_STAR_MPA = 110_000.0
@@ -147,21 +152,32 @@ def main() -> None:
     parser.add_argument("--stage0", type=int, default=10)
     parser.add_argument("--stage1", type=int, default=4)
     parser.add_argument("--threads", type=int, nargs="+", default=[1], help="BLAS threads")
+    parser.add_argument(
+        "--lu-threads",
+        type=int,
+        nargs="+",
+        default=[contact_newton.LU_THREADS],
+        help="BLAS threads of the large dense LUs (fe.contact_newton.LU_THREADS)",
+    )
     args = parser.parse_args()
     print(
-        "     m  path  thr  increments  iterations  LU  wall s  peak MiB  new/old wall"
+        "     m  path  thr  LUthr  increments  iterations  LU  wall s  peak MiB  new/old wall"
         "  result (open/stick/slip at +Q, or δ_end mm and Σ friction work N·mm)"
     )
     cases = [("hinge", 0)] if args.hinge else [("grid", m) for m in args.sizes]
-    for (kind, m_target), threads in itertools.product(cases, args.threads):
+    for (kind, m_target), threads, lu_threads in itertools.product(
+        cases, args.threads, args.lu_threads
+    ):
         walls = {}
+        contact_newton.LU_THREADS = lu_threads  # a benchmark switch, read at each LU
         for solver in (LinearSolver.LU, LinearSolver.KRYLOV):
             with threadpool_limits(limits=threads, user_api="blas"):
                 m, n_inc, iters, n_lu, wall, peak, out = _case(kind, m_target, solver, args)
             walls[solver] = wall
             ratio = wall / walls[LinearSolver.LU]
             print(
-                f"{m:6d}  {solver.name[:3]:4s}  {threads:3d}  {n_inc:10d}  {iters:10d}  {n_lu:3d}"
+                f"{m:6d}  {solver.name[:3]:4s}  {threads:3d}  {lu_threads:5d}"
+                f"  {n_inc:10d}  {iters:10d}  {n_lu:3d}"
                 f"  {wall:6.1f}  {peak:8.1f}  {ratio:12.2f}  {out}",
                 flush=True,
             )

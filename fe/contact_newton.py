@@ -6,6 +6,8 @@ active-set linear algebra. Notation and conventions are those of :mod:`fe.contac
 
 from __future__ import annotations
 
+import contextlib
+import os
 import warnings
 from collections.abc import Callable
 from typing import NamedTuple
@@ -14,10 +16,41 @@ import numpy as np
 import numpy.typing as npt
 import scipy.linalg as sla
 import scipy.sparse as sp
+from threadpoolctl import threadpool_limits
 
+from cad.errors import ParameterError
 from fe.contact_law import ContactStatus, CoulombStep, coulomb_step, slip_frame
 
 FloatArray = npt.NDArray[np.float64]
+
+
+def _lu_threads_from_env() -> int:
+    """``HINGELAB_LU_THREADS`` if set (an integer ≥ 1), else min(2, CPU count)."""
+    raw = os.environ.get("HINGELAB_LU_THREADS")
+    if raw is None:
+        return min(2, os.cpu_count() or 1)
+    try:
+        value = int(raw)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise ParameterError(f"HINGELAB_LU_THREADS must be an integer ≥ 1, got {raw!r}")
+    return value
+
+
+LU_THREADS = _lu_threads_from_env()
+"""BLAS threads for a dense LU of at least ``LU_THREADED_MIN`` unknowns.
+
+Environment ``HINGELAB_LU_THREADS`` overrides it (a sweep with one worker per core sets 1).
+
+The rest of the contact phase runs on ``CycleSettings.blas_threads`` (1): its many
+small products and triangular solves were 3.4× slower with two threads (level 0,
+benchmarks/bench_cycle.py). A large LU is compute-bound and gains: measured on this
+2-core machine, 1 → 2 threads, n = 1000 / 3000 / 6000: 0.045 → 0.037 s, 0.82 → 0.50 s,
+5.3 → 3.1 s."""
+
+LU_THREADED_MIN = 2000
+"""Smallest reduced Jacobian factorised with ``LU_THREADS`` threads."""
 
 
 class Problem(NamedTuple):
@@ -395,7 +428,13 @@ def factor_jacobian(J: FloatArray, keys: npt.NDArray[np.int64]) -> Factor | None
         warnings.simplefilter("error", sla.LinAlgWarning)
         try:
             # J is C-ordered, so J.T is Fortran-ordered: LAPACK factors Jᵀ in place.
-            lu = sla.lu_factor(J.T, overwrite_a=True, check_finite=False)
+            threads = (
+                threadpool_limits(limits=LU_THREADS, user_api="blas")
+                if J.shape[0] >= LU_THREADED_MIN and LU_THREADS > 1
+                else contextlib.nullcontext()
+            )
+            with threads:
+                lu = sla.lu_factor(J.T, overwrite_a=True, check_finite=False)
         except sla.LinAlgWarning:
             return None
     diag = np.abs(np.diag(lu[0]))

@@ -20,6 +20,7 @@ Layout of ``out``::
 from __future__ import annotations
 
 import logging
+import os
 import sqlite3
 import time
 import traceback
@@ -296,7 +297,12 @@ def _run_on_dask(
     n = min(settings.workers, len(tasks))
     with (
         LocalCluster(
-            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            # one worker per core: a worker's large LUs must not take a second thread
+            env={"HINGELAB_LU_THREADS": str(max(1, (os.cpu_count() or 1) // n))},
         ) as cluster,
         Client(cluster) as client,
     ):

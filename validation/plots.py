@@ -178,7 +178,8 @@ def plot_residuals(cmp: Comparison, path: Path) -> Path:
 
 def plot_fingerprint(cmp: Comparison, path: Path) -> Path:
     """Draw W and η against amplitude on log–log axes, measured and model, with fitted slopes."""
-    fig = Figure(figsize=(11.0, 4.6), layout="constrained")
+    n_groups = len({(c.case.hinge, c.case.clearance_mm, c.case.preload_n) for c in cmp.cases})
+    fig = Figure(figsize=(12.0, 4.6 + 0.2 * n_groups), layout="constrained")
     ax_w, ax_e = fig.subplots(1, 2)
     fits = {f.group: f for f in cmp.fingerprint}
     groups: dict[str, list[CaseComparison]] = {}
@@ -214,7 +215,8 @@ def plot_fingerprint(cmp: Comparison, path: Path) -> Path:
         ax.set_xlabel("amplitude Fg [N]")
         ax.set_ylabel(ylabel)
         ax.grid(True, which="both", color="0.9")
-        ax.legend(fontsize=7.5, loc="best")
+        # below the axes: inside, the legend of a 5-group design covered the points
+        ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
     ax_w.set_title("W vs Fg (homogeneous model: slope 2)")
     ax_e.set_title("η vs Fg (homogeneous model: slope 0)")
     fig.suptitle("Fingerprint: measured (filled, dotted fit) and model (open, solid fit)")
