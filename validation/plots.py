@@ -186,10 +186,26 @@ def plot_fingerprint(cmp: Comparison, path: Path) -> Path:
     for c in cmp.cases:
         key = f"{c.case.hinge}, Δr = {c.case.clearance_mm:g} mm, preload = {c.case.preload_n:g} N"
         groups.setdefault(key, []).append(c)
+    hinges = {c.case.hinge for c in cmp.cases}
+    preloads = {c.case.preload_n for c in cmp.cases}
+
+    def short(c: CaseComparison) -> str:
+        """The group's name with what every group shares left out (it is in the title)."""
+        parts = [c.case.hinge] if len(hinges) > 1 else []
+        parts.append(f"Δr = {c.case.clearance_mm:g} mm")
+        if len(preloads) > 1:
+            parts.append(f"preload {c.case.preload_n:g} N")
+        return ", ".join(parts)
+
+    common = ", ".join(
+        ([next(iter(hinges))] if len(hinges) == 1 else [])
+        + ([f"preload {next(iter(preloads)):g} N"] if len(preloads) == 1 else [])
+    )
     for g, (name, members) in enumerate(groups.items()):
         color = f"C{g % 10}"
         amps = np.array([c.case.amplitude_n for c in members])
         fit = fits.get(name)
+        label = short(members[0])
         for ax, key, what in ((ax_w, "W_cycle_Nmm", "W"), (ax_e, "eta", "eta")):
             for side, marker, ls in (("measured", "o", ":"), ("model", "s", "-")):
                 v = np.array([getattr(c, side).get(key, math.nan) for c in members])
@@ -197,7 +213,7 @@ def plot_fingerprint(cmp: Comparison, path: Path) -> Path:
                 if not ok.any():
                     continue
                 slope = math.nan if fit is None else getattr(fit, f"slope_{what}_{side}")
-                lab = f"{side}, {name}" + ("" if math.isnan(slope) else f": slope {_fmt(slope)}")
+                lab = f"{side}, {label}" + ("" if math.isnan(slope) else f": slope {_fmt(slope)}")
                 ax.plot(
                     amps[ok],
                     v[ok],
@@ -219,7 +235,10 @@ def plot_fingerprint(cmp: Comparison, path: Path) -> Path:
         ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
     ax_w.set_title("W vs Fg (homogeneous model: slope 2)")
     ax_e.set_title("η vs Fg (homogeneous model: slope 0)")
-    fig.suptitle("Fingerprint: measured (filled, dotted fit) and model (open, solid fit)")
+    fig.suptitle(
+        "Fingerprint: measured (filled, dotted fit) and model (open, solid fit)"
+        + (f" — {common}" if common else "")
+    )
     return _save(fig, path)
 
 
