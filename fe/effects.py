@@ -18,14 +18,14 @@ once per mesh and clearance, reusable for every amplitude and effect), runs
 metrics (η, U_max, the energy balance) are consistent.
 
 Fingerprints: each effect's docstring gives a table measured on the coarse test mesh
-(``MeshSettings.coarse()``: size 4, contact 2 mm; 6 increments per stage, μ = 0.2),
+(``MeshSettings.coarse()``: size 4, contact 2 mm; μ = 0.2),
 baseline vs effect, η and δ(+Fg) [µm] at Fg = 100 and 400 N and Δr = 0 and 0.1 mm
 (``tests/fe/test_effects.py::fingerprint_table`` regenerates it; the slow test
 ``test_docstring_fingerprints_are_measured`` checks every row to 2 %), each effect at its
 parameter's default strength, 40 increments per stage (with clearance, fewer increments
 leave a first-order open/close work in the loop area: at 6 per stage η at Δr = 0.1 mm
-is off by a factor 2). Baseline: Δr = 0: η = 0.01376 at both amplitudes (positively
-homogeneous); Δr = 0.1 mm: η = 0.00073 / 0.00128 at 100 / 400 N.
+is off by a factor 2). Baseline: Δr = 0: η = 0.01458 at both amplitudes (positively
+homogeneous); Δr = 0.1 mm: η = 0.00094 / 0.00126 at 100 / 400 N.
 
 Effects that only make sense without clearance say so in ``zero_clearance_reason``;
 they raise a ``ParameterError`` naming their parameter when applied with Δr > 0, and
