@@ -26,7 +26,7 @@ __all__ = [
 import dataclasses
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -176,6 +176,27 @@ def _run(
     return result
 
 
+def increment_displacements(
+    system: HingeSystem, result: CycleResult, indices: Sequence[int]
+) -> list[FloatArray]:
+    """Displacement fields of chosen increments, shape (n_nodes, 3) each [mm], in one batch.
+
+    One batch because a large mesh refactorises for every recovery
+    (``HingeSystem.low_memory``).
+    """
+    return displacements(
+        system,
+        [
+            (
+                result.configs[result.increments[k].side],
+                np.asarray(result.states[k].p),
+                np.asarray(result.states[k].alpha),
+            )
+            for k in indices
+        ],
+    )
+
+
 def _check_window(system: HingeSystem, result: CycleResult, peaks: list[int]) -> None:
     """Raise if a point outside the contact window has closed (the window was too small).
 
@@ -186,17 +207,7 @@ def _check_window(system: HingeSystem, result: CycleResult, peaks: list[int]) ->
     peaks = [k for k in peaks if result.configs[result.increments[k].side].outside is not None]
     if not peaks:
         return
-    fields = displacements(
-        system,
-        [
-            (
-                result.configs[result.increments[k].side],
-                np.asarray(result.states[k].p),
-                np.asarray(result.states[k].alpha),
-            )
-            for k in peaks
-        ],
-    )
+    fields = increment_displacements(system, result, peaks)
     for k, u in zip(peaks, fields, strict=True):
         cond = result.configs[result.increments[k].side]
         gaps = outside_gaps(cond, u)

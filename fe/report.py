@@ -10,9 +10,9 @@ import meshio
 import numpy as np
 
 from fe.assembly import stress_field
-from fe.cycle import CycleResult
+from fe.cycle import CycleResult, increment_displacements
 from fe.element import ElementType, von_mises
-from fe.hinge_system import HingeSystem, displacements
+from fe.hinge_system import HingeSystem
 
 LOOP_COLUMNS = ("force_N", "displacement_mm", "stage", "increment", "side")
 """Columns of loop.csv; the first two are those of a measured loop."""
@@ -113,17 +113,7 @@ def write_time_series(
         if k % every == 0 or k == len(result.increments) - 1
     ]
     entries = []
-    fields = displacements(  # one batch: a large mesh refactorises per call (low_memory)
-        system,
-        [
-            (
-                result.configs[result.increments[k].side],
-                np.asarray(result.states[k].p),
-                np.asarray(result.states[k].alpha),
-            )
-            for k in chosen
-        ],
-    )
+    fields = increment_displacements(system, result, chosen)
     for k, u in zip(chosen, fields, strict=True):
         inc, state = result.increments[k], result.states[k]
         cond = result.configs[inc.side]
