@@ -6,6 +6,9 @@ memory, and the fitted growth exponent of wall time vs DOF. Also a BLAS-thread
 comparison of the contact phase (1 vs 2 threads) on level 0, run in the same process.
 
 Run: .venv/bin/python benchmarks/bench_cycle.py [max_level] [clearance_mm]
+
+Recorded run of levels 0–2 at Δr = 0.1 mm: bench_cycle_levels_0-2_dr0.1.txt (level 2:
+1.07 M DOF, 29 min, 20.7 GB peak; zero clearance at level 2 needs a 36 000² dense operator).
 """
 
 from __future__ import annotations
