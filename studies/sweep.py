@@ -82,6 +82,7 @@ def run_geometry(
 
     Runs in a worker process. Never raises: a failure becomes a ``failed`` record.
     """
+    from fe.contact_newton import LU_THREADS
     from fe.cycle import CycleSettings, run_cycle
     from fe.hinge_system import build_system
     from fe.report import write_loop_csv, write_loop_png
@@ -94,6 +95,7 @@ def run_geometry(
             "mu": settings.mu,
             "increments_per_stage": settings.increments_per_stage,
             "mesh": asdict(settings.mesh),
+            "lu_threads": LU_THREADS,  # this worker's share of the cores (timings depend on it)
         },
     }
     try:

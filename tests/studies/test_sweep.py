@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import csv
+import json
+import os
+import sqlite3
 
 import pytest
 
@@ -59,6 +62,10 @@ def test_sweep_on_dask_workers(tmp_path):
     out = run_sweep(settings, tmp_path)
     assert (out.ok, out.failed) == (2, 0)
     assert {float(r["clearance_mm"]) for r in rows(out.table)} == {0.0, 0.1}
+    # each of the two workers gets its share of the cores for its dense LUs
+    with sqlite3.connect(out.db) as con:
+        solvers = [json.loads(s) for (s,) in con.execute("SELECT solver_json FROM points")]
+    assert {s["lu_threads"] for s in solvers} == {max(1, (os.cpu_count() or 1) // 2)}
 
 
 def test_bad_sweep_settings():
