@@ -85,7 +85,7 @@ def test_low_memory_mode_holds_one_factor_and_recovers_the_same_fields():
     settings = MeshSettings.coarse()
     mesh, _ = mesh_hinge(make_general_hinge(GeneralHingeParams()), settings)
     kept = build_system(mesh)
-    assert not kept.low_memory  # 29k DOF: below the threshold
+    assert not kept.low_memory  # the coarse mesh is far below LOW_MEMORY_DOF
     res = run_cycle(kept, 0.0, CycleSettings(amplitude_n=300.0, increments_per_stage=4))
     cond = res.configs[1]
     picks = [(cond, np.asarray(s.p), np.asarray(s.alpha)) for s in res.states[::3]]
