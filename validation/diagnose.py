@@ -178,10 +178,9 @@ def _eta_without_free_play(model: FloatArray, meas: MeasuredFeatures) -> FloatAr
     excludes the free play: ``η = W / (π Fg (δ_max − 2Δr))``; the loop area W is the same
     with or without the zero-force traverse.
     """
-    clear = np.array([p[0] for p in meas.points])
-    m = np.asarray(model, dtype=np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.asarray(m[:, 1] / (math.pi * meas.amplitudes * (m[:, 0] - 2.0 * clear)))
+    elastic = np.array(model, dtype=np.float64, copy=True)
+    elastic[:, 0] -= 2.0 * np.array([p[0] for p in meas.points])
+    return derived(elastic, meas.amplitudes)[1]
 
 
 def residuals(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:

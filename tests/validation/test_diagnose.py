@@ -195,20 +195,19 @@ def test_eta_judged_without_free_play_is_the_cycles_reported_eta(spec, tmp_path)
     from fe.effects import run_cycle_with_effects
     from validation.diagnose import _eta_without_free_play, measured_features
     from validation.evaluate import ModelEvaluator
-    from validation.features import FeatureSettings
+    from validation.features import FeatureSettings, derived
 
     point = (0.1, 300.0)
     meas = measured_features(_eta_table(tmp_path, [(*point, 0.001)]), FeatureSettings())
     evaluator = ModelEvaluator(spec, [point])
-    judged = float(_eta_without_free_play(evaluator.features({}), meas)[0])
+    features = evaluator.features({})
+    judged = float(_eta_without_free_play(features, meas)[0])
     system, base = evaluator._system(point[0])
     settings = dataclasses.replace(evaluator.cycle, amplitude_n=point[1])
     reported = run_cycle_with_effects(system, point[0], settings, {}, base).metrics()["eta"]
     # same loop, same δ; they differ only by how the loop is closed (chord vs last state)
     assert judged == pytest.approx(reported, rel=0.01)
-    with_play = float(
-        evaluator.features({})[0, 1] / (math.pi * point[1] * evaluator.features({})[0, 0])
-    )
+    with_play = float(derived(features, meas.amplitudes)[1][0])
     assert with_play < 0.5 * reported  # the free play matters here: the test can tell
 
 
