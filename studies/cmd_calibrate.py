@@ -4,9 +4,10 @@
 fits μ (with ``--mu``, first) and the named effects' parameters (``validation.calibrate``),
 writes the extended model to ``DIR/MODEL.toml``, appends baseline → +effect → … to
 ``DIR/ledger.json`` and ``DIR/ledger.csv`` and draws ``DIR/ledger.png`` (error per step,
-held-out error, noise level), then re-runs the comparison with the new model (``hingelab compare``'s work, into
-``DIR/compare/``: per-case errors and pass/fail, overlays, error map, fingerprint) and
-prints how many cases pass with it; ``--no-compare`` skips that.
+held-out error, noise level), then re-runs the comparison with the new model
+(``hingelab compare``'s work, into ``DIR/compare/``: per-case errors and pass/fail,
+overlays, error map, fingerprint) and prints how many cases pass with it;
+``--no-compare`` skips that.
 """
 
 from __future__ import annotations
