@@ -14,7 +14,7 @@ Q = 0.8 μ P (partial slip with an annulus of slip). Run:
 Each case runs with the old path (``LinearSolver.LU``: dense LU per iteration, chord
 steps) and the new one (``LinearSolver.KRYLOV``) in the same process, and prints the
 ratio new/old. ``--hinge`` replays the first increments of a hinge cycle (400 N, μ 0.2)
-from an .npz with the condensed ``W``, ``G`` and ``w0`` of ``fe.cycle.configurations``
+from an .npz with the condensed ``W``, ``G`` and ``w0`` of ``fe.hinge.cycle.configurations``
 (e.g. ``np.savez(path, W=c.W, G=c.G, w0=c.w0)``), to time refinement levels whose
 condensation takes minutes.
 
@@ -49,8 +49,8 @@ import tracemalloc
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from fe import contact_newton
 from fe.contact import ContactSettings, ContactState, LinearSolver, solve_increment
+from fe.contact import newton as contact_newton
 
 E_STAR_MPA = 110_000.0
 
@@ -112,8 +112,8 @@ def run_hinge(path: str, n_stage0: int, n_stage1: int, solver: LinearSolver):
     """Replay the first increments of stages 0 and 1 (all stages if n_stage0 < 0) on a saved W."""
     import types
 
-    from fe.cycle import _advance
-    from fe.protocol import CycleSettings, stage_targets
+    from fe.hinge.cycle import _advance
+    from fe.hinge.protocol import CycleSettings, stage_targets
 
     data = np.load(path)
     cond = types.SimpleNamespace(W=np.ascontiguousarray(data["W"]), G=data["G"], w0=data["w0"])
@@ -157,7 +157,7 @@ def main() -> None:
         type=int,
         nargs="+",
         default=[contact_newton.LU_THREADS],
-        help="BLAS threads of the large dense LUs (fe.contact_newton.LU_THREADS)",
+        help="BLAS threads of the large dense LUs (fe.contact.newton.LU_THREADS)",
     )
     args = parser.parse_args()
     print(

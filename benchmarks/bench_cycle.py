@@ -24,8 +24,8 @@ from _common import print_table, run_isolated
 
 def case(level: int, clearance: float, threads: int = 1) -> dict[str, object]:
     from cad.general import GeneralHingeParams, make_general_hinge
-    from fe.cycle import CycleSettings, run_cycle
-    from fe.hinge_system import build_system
+    from fe.hinge.cycle import CycleSettings, run_cycle
+    from fe.hinge.system import build_system
     from mesh.build import mesh_hinge
     from mesh.settings import MeshSettings
 

@@ -45,7 +45,7 @@ CHECKS: tuple[tuple[str, dict[str, dict[str, float]], Any, int], ...] = (
 
 def _spec() -> Any:
     from cad.general import GeneralHingeParams
-    from fe.cycle import CycleSettings
+    from fe.hinge.cycle import CycleSettings
     from mesh.settings import MeshSettings
     from validation.model_file import ModelSpec
 

@@ -51,6 +51,10 @@ class ConvergenceError(HingelabError, RuntimeError):
         self.partial = partial
 
 
+class SolverError(HingelabError, RuntimeError):
+    """A linear solver failed on a matrix it was given (e.g. not positive definite)."""
+
+
 class DataError(HingelabError, ValueError):
     """Input data (a table or measurement file) is malformed; the message names file, row, column."""
 

@@ -86,9 +86,9 @@ def run_model_for_cases(
         (case_id → ModelResult, (clearance, amplitude) → CycleResult).
     """
     from cad.general import make_general_hinge
-    from fe.cycle import run_cycle
     from fe.effects import run_cycle_with_effects
-    from fe.hinge_system import build_system
+    from fe.hinge.cycle import run_cycle
+    from fe.hinge.system import build_system
     from mesh.build import mesh_hinge
     from validation.model_file import with_clearance
 

@@ -16,7 +16,7 @@ from studies.pipeline import build_and_mesh, dumps, make_model
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add the ``cycle`` subcommand."""
-    from fe.cycle import DEFAULT_MU
+    from fe.hinge.cycle import DEFAULT_MU
 
     p = sub.add_parser("cycle", help="run the 0 → +Fg → −Fg → +Fg cycle; write loop, η, fields")
     add_geometry_arguments(p)
@@ -70,9 +70,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab cycle``."""
-    from fe.cycle import run_cycle
-    from fe.hinge_system import build_system
-    from fe.report import write_loop_csv, write_loop_png, write_time_series
+    from fe.hinge.cycle import run_cycle
+    from fe.hinge.report import write_loop_csv, write_loop_png, write_time_series
+    from fe.hinge.system import build_system
 
     t0 = time.perf_counter()
     if args.frames < 0:
@@ -136,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
 def _model_from_args(args: argparse.Namespace) -> tuple[Any, Any, Any, dict[str, Any]]:
     """Return (HingeModel, MeshSettings, CycleSettings, effects) from a model file or the options."""
     from cad.general import make_general_hinge
-    from fe.cycle import CycleSettings
+    from fe.hinge.cycle import CycleSettings
 
     if args.model is None:
         if args.hinge != "general":

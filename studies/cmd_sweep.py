@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from cad.errors import ParameterError
-from fe.cycle import DEFAULT_MU
+from fe.hinge.cycle import DEFAULT_MU
 from studies.cmd_mesh import add_mesh_arguments, settings_from_args
 from studies.pipeline import dumps
 from studies.sweep import SweepSettings, run_sweep

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from cad.errors import ParameterError
-from fe.cycle import DEFAULT_MU
+from fe.hinge.cycle import DEFAULT_MU
 from mesh.settings import MeshSettings
 
 logger = logging.getLogger(__name__)
@@ -82,10 +82,10 @@ def run_geometry(
 
     Runs in a worker process. Never raises: a failure becomes a ``failed`` record.
     """
-    from fe.contact_newton import LU_THREADS
-    from fe.cycle import CycleSettings, run_cycle
-    from fe.hinge_system import build_system
-    from fe.report import write_loop_csv, write_loop_png
+    from fe.contact.newton import LU_THREADS
+    from fe.hinge.cycle import CycleSettings, run_cycle
+    from fe.hinge.report import write_loop_csv, write_loop_png
+    from fe.hinge.system import build_system
     from studies.pipeline import build_and_mesh, dumps, make_model
 
     records: list[dict[str, Any]] = []

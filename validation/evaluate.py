@@ -87,8 +87,8 @@ class ModelEvaluator:
         if clearance not in self._systems:
             from cad.errors import ParameterError
             from cad.general import GeneralHingeParams, make_general_hinge
-            from fe.cycle import configurations
-            from fe.hinge_system import build_system
+            from fe.hinge.cycle import configurations
+            from fe.hinge.system import build_system
             from mesh.build import mesh_hinge
             from validation.model_file import with_clearance
 

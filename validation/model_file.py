@@ -40,7 +40,7 @@ from cad.bearing import BearingHingeParams
 from cad.errors import DataError, ParameterError, check_range
 from cad.general import GeneralHingeParams
 from cad.materials import Material
-from fe.cycle import CycleSettings
+from fe.hinge.cycle import CycleSettings
 from mesh.settings import MeshSettings
 
 HingeParams = GeneralHingeParams | BearingHingeParams

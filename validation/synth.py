@@ -33,7 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ParameterError, check_range
-from fe.cycle import CycleResult
+from fe.hinge.cycle import CycleResult
 from mesh.settings import MeshSettings
 from validation.model_file import ModelSpec
 
@@ -280,9 +280,9 @@ def synthesize(
         ParameterError: A bad effect, a non-general hinge, or an effect refused at a case.
     """
     from cad.general import GeneralHingeParams, make_general_hinge
-    from fe.cycle import configurations
     from fe.effects import run_cycle_with_effects, validate_effects
-    from fe.hinge_system import build_system
+    from fe.hinge.cycle import configurations
+    from fe.hinge.system import build_system
     from mesh.build import mesh_hinge
     from validation.model_file import with_clearance
 

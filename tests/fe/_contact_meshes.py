@@ -29,7 +29,7 @@ import numpy as np
 from cad.materials import Material
 from cad.surfaces import Cylinder, Plane
 from fe.assembly import dofs_of
-from fe.twobody import (
+from fe.hinge.twobody import (
     Condensed,
     TwoBodySystem,
     build_two_body,

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from cad.errors import ParameterError
+from cad.errors import ParameterError, SolverError
 from cad.materials import Material, lame_from_young_poisson
 from fe.assembly import (
     Factorization,
@@ -224,7 +224,7 @@ def test_factorization_rejects_unsymmetric_and_bad_rhs():
 
 
 def test_pardiso_reports_indefinite_matrix():
-    with pytest.raises(ParameterError, match="PARDISO"):
+    with pytest.raises(SolverError, match="PARDISO"):
         Factorization(sp.csr_matrix(np.diag([1.0, -1.0, 2.0])), backend=LinearSolverBackend.PARDISO)
 
 
@@ -244,5 +244,5 @@ def test_inverse_block_rejects_repeats_and_indefinite():
         inverse_block(K_ff, [0, 1, 1])
     with pytest.raises(ParameterError, match=r"idx must lie in \[0, "):
         inverse_block(K_ff, [K_ff.shape[0]])
-    with pytest.raises(ParameterError, match="positive definite"):
+    with pytest.raises(SolverError, match="positive definite"):
         inverse_block(sp.csr_matrix(np.diag([1.0, -1.0, 2.0, 3.0])), [0, 1])

@@ -16,7 +16,7 @@ from fe.contact import (
     complementarity,
     solve_increment,
 )
-from fe.contact_law import coulomb_step
+from fe.contact.law import coulomb_step
 
 TOL = ContactSettings().tol
 # Converged quantities are compared at a few hundred times the solver tolerance: the

@@ -7,8 +7,10 @@ import gc
 import numpy as np
 import pytest
 
-from fe import contact, contact_krylov, contact_newton
+from fe import contact
 from fe.contact import ContactSettings, ContactState, KrylovOptions, LinearSolver, solve_increment
+from fe.contact import krylov as contact_krylov
+from fe.contact import newton as contact_newton
 
 
 def random_W(m, seed, coupling=0.15):

@@ -7,8 +7,8 @@ import pytest
 import scipy.linalg as sla
 
 from cad.errors import ParameterError
-from fe import contact_newton
-from fe.contact_newton import _lu_threads_from_env, factor_jacobian
+from fe.contact import newton as contact_newton
+from fe.contact.newton import _lu_threads_from_env, factor_jacobian
 
 
 @pytest.mark.parametrize("raw", ["0", "-1", "two", ""])

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from scipy.optimize import nnls
 
-from fe import contact, contact_newton
 from fe.contact import (
     ContactSettings,
     ContactState,
@@ -14,6 +13,8 @@ from fe.contact import (
     complementarity,
     solve_increment,
 )
+from fe.contact import newton as contact_newton
+from fe.contact import state as contact_state
 
 CMP = 1e3 * ContactSettings().tol  # see tests/fe/test_contact.py
 
@@ -138,7 +139,7 @@ def test_newton_step_equals_full_generalised_newton_direction():
     p = rng.normal(size=(m, 3)) + np.array([0.5, 0.0, 0.0])
     comp = complementarity(W, w_free, prev, p, settings)
     full = -np.linalg.solve(comp.jacobian, comp.residual.ravel())
-    prob = contact._validate(W, w_free, prev, None, None)._replace(mu=settings.mu)
+    prob = contact_state.validate_problem(W, w_free, prev, None, None)._replace(mu=settings.mu)
     r = settings.r_scale / np.diagonal(W).reshape(m, 3).mean(axis=1)
     it = contact_newton.evaluate(prob, p, np.zeros(0), r)
     step = contact_newton.newton_step(prob, it, r, 0.0)

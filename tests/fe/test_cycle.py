@@ -12,8 +12,8 @@ import pytest
 
 from cad.errors import ConvergenceError, ParameterError
 from cad.general import GeneralHingeParams, make_general_hinge
-from fe.cycle import CycleResult, CycleSettings, grip_force, run_cycle
-from fe.hinge_system import build_system, displacement, support_reaction
+from fe.hinge.cycle import CycleResult, CycleSettings, grip_force, run_cycle
+from fe.hinge.system import build_system, displacement, support_reaction
 from mesh.settings import MeshSettings
 
 pytest.importorskip("gmsh")

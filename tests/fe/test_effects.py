@@ -15,7 +15,6 @@ import pytest
 
 from cad.errors import ParameterError
 from cad.general import GeneralHingeParams, make_general_hinge
-from fe.cycle import CycleSettings, configurations, run_cycle
 from fe.effects import (
     REGISTRY,
     EffectContext,
@@ -25,7 +24,8 @@ from fe.effects import (
     run_cycle_with_effects,
     validate_effects,
 )
-from fe.hinge_system import build_system
+from fe.hinge.cycle import CycleSettings, configurations, run_cycle
+from fe.hinge.system import build_system
 from mesh.settings import MeshSettings
 
 pytest.importorskip("gmsh")
@@ -208,7 +208,7 @@ def face_400(tight):
 
 def test_face_friction_clamp_equals_the_parameter(tight, face_400):
     """At F = 0 (the prestressed zero's state) each face carries the clamp force."""
-    from fe.face_contact import face_normal_forces, unloaded_state
+    from fe.hinge.faces import face_normal_forces, unloaded_state
 
     cond = face_400.result.configs[1]
     state = unloaded_state(cond, EffectContext(tight[0], settings()).contact())
@@ -230,7 +230,7 @@ def test_face_friction_sticks_at_low_force_and_stiffens(face_100, tight):
 
 
 def test_face_friction_closes_the_energy_balance_and_the_pin_floats(face_400, tight):
-    from fe.hinge_system import displacement, support_reaction
+    from fe.hinge.system import displacement, support_reaction
 
     system, _ = tight
     m = face_400.metrics()
@@ -380,7 +380,7 @@ def test_docstring_fingerprints_are_measured():
 
 
 def test_result_is_a_cycle_result_with_consistent_metrics(tight):
-    from fe.cycle import CycleResult
+    from fe.hinge.cycle import CycleResult
 
     system, configs = tight
     r = run_cycle_with_effects(

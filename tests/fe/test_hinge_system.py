@@ -7,7 +7,7 @@ import pytest
 
 from cad.general import GeneralHingeParams, make_general_hinge
 from cad.surfaces import Cylinder
-from fe.contact_geometry import closest_point, contact_geometry
+from fe.hinge.geometry import closest_point, contact_geometry
 
 pytest.importorskip("gmsh")
 from mesh.build import mesh_hinge
@@ -56,7 +56,7 @@ def test_gaps_are_exact_and_projections_land_on_the_master():
 
 
 def test_compliance_cache_is_keyed_by_mesh_content(tmp_path):
-    from fe.hinge_system import build_system
+    from fe.hinge.system import build_system
 
     settings = MeshSettings.coarse()
     mesh, _ = mesh_hinge(make_general_hinge(GeneralHingeParams()), settings)
@@ -79,8 +79,8 @@ def test_low_memory_mode_holds_one_factor_and_recovers_the_same_fields():
     # low-memory mode each factor is released after its solve. The fields must not change.
     import dataclasses
 
-    from fe.cycle import CycleSettings, run_cycle
-    from fe.hinge_system import build_system, displacement, displacements
+    from fe.hinge.cycle import CycleSettings, run_cycle
+    from fe.hinge.system import build_system, displacement, displacements
 
     settings = MeshSettings.coarse()
     mesh, _ = mesh_hinge(make_general_hinge(GeneralHingeParams()), settings)

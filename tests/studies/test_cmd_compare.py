@@ -19,7 +19,7 @@ AMPLITUDES = {"c200": (200.0, 1.0), "c400": (400.0, 1.0), "c300_bad": (300.0, 1.
 
 def _model_file(path):
     from cad.general import GeneralHingeParams
-    from fe.cycle import CycleSettings
+    from fe.hinge.cycle import CycleSettings
     from mesh.settings import MeshSettings
     from validation.model_file import ModelSpec, write_model
 

@@ -32,7 +32,7 @@ def _synth_registered():
 @pytest.fixture(scope="module")
 def model_path(tmp_path_factory):
     from cad.general import GeneralHingeParams
-    from fe.cycle import CycleSettings
+    from fe.hinge.cycle import CycleSettings
     from mesh.settings import MeshSettings
     from validation.model_file import ModelSpec, write_model
 

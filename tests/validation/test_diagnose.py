@@ -175,7 +175,7 @@ FAST = DiagnoseSettings(
 def spec():
     pytest.importorskip("gmsh")
     from cad.general import GeneralHingeParams
-    from fe.cycle import CycleSettings
+    from fe.hinge.cycle import CycleSettings
     from mesh.settings import MeshSettings
     from validation.model_file import ModelSpec
 

@@ -8,7 +8,7 @@ from cad.bearing import Arrangement, BearingHingeParams
 from cad.errors import DataError, ParameterError
 from cad.general import GeneralHingeParams
 from cad.materials import Material
-from fe.cycle import CycleSettings
+from fe.hinge.cycle import CycleSettings
 from mesh.settings import MeshSettings
 from validation.model_file import ModelSpec, read_model, with_clearance, write_model
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cad.errors import ParameterError
-from fe.cycle import CycleResult, CycleSettings, Increment
+from fe.hinge.cycle import CycleResult, CycleSettings, Increment
 from mesh.settings import MeshSettings
 from validation.loops import process_loop
 from validation.measurements import Loop, check_amplitude

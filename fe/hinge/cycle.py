@@ -1,12 +1,12 @@
 """The hinge's hysteresis cycle: 0 → +Fg → −Fg → +Fg under force control, and its loss factor.
 
-Force control is exact here (see ``fe.hinge_system``): each increment prescribes F and
+Force control is exact here (see ``fe.hinge.system``): each increment prescribes F and
 the grip displacement δ comes out of the contact solve. Increments are graded so the
 steps are small just after each reversal, where the stick zones start to slip.
 
-This module drives the cycle; the protocol is ``fe.protocol`` and what is measured on
-the result (η, W_cycle, U_max, the energy balance) is ``fe.cycle_result``. Both are
-re-exported here, so ``from fe.cycle import CycleSettings, run_cycle`` is the public API.
+This module drives the cycle; the protocol is ``fe.hinge.protocol`` and what is measured on
+the result (η, W_cycle, U_max, the energy balance) is ``fe.hinge.result``. Both are
+re-exported here, so ``from fe.hinge.cycle import CycleSettings, run_cycle`` is the public API.
 """
 
 from __future__ import annotations
@@ -34,10 +34,10 @@ from threadpoolctl import threadpool_limits
 
 from cad.errors import ConvergenceError, check_range
 from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
-from fe.contact_geometry import contact_geometry, split_window
-from fe.cycle_result import CycleResult, Increment
-from fe.hinge_system import Condensed, HingeSystem, condense, displacements, outside_gaps
-from fe.protocol import DEFAULT_MU, CycleSettings, stage_targets
+from fe.hinge.geometry import contact_geometry, split_window
+from fe.hinge.protocol import DEFAULT_MU, CycleSettings, stage_targets
+from fe.hinge.result import CycleResult, Increment
+from fe.hinge.system import Condensed, HingeSystem, condense, displacements, outside_gaps
 
 logger = logging.getLogger(__name__)
 
@@ -86,7 +86,7 @@ def run_cycle(
     """Run the load cycle on a factorised hinge.
 
     Args:
-        system: The factorised hinge (``fe.hinge_system.build_system``).
+        system: The factorised hinge (``fe.hinge.system.build_system``).
         clearance_mm: Its radial clearance Δr [mm] (sets the touching configurations).
         settings: Load protocol and solver options.
         configs: Condensed configurations to reuse (they depend on the mesh and Δr only).

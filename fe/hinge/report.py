@@ -10,9 +10,9 @@ import meshio
 import numpy as np
 
 from fe.assembly import stress_field
-from fe.cycle import CycleResult, increment_displacements
 from fe.element import ElementType, von_mises
-from fe.hinge_system import HingeSystem
+from fe.hinge.cycle import CycleResult, increment_displacements
+from fe.hinge.system import HingeSystem
 
 LOOP_COLUMNS = ("force_N", "displacement_mm", "stage", "increment", "side")
 """Columns of loop.csv; the first two are those of a measured loop."""

@@ -49,14 +49,14 @@ import scipy.sparse as sp
 
 from cad.errors import MeshQualityError, ParameterError
 from fe.assembly import Factorization, assemble_stiffness
-from fe.contact_geometry import (
+from fe.element import ElementType
+from fe.hinge.geometry import (
     ContactGeometry,
     bilinear_weights,
     contact_operator,
     project_on_facets,
 )
-from fe.element import ElementType
-from fe.hinge_system import BLOCK_RHS
+from fe.hinge.system import BLOCK_RHS
 from mesh.hexmesh import HexMesh
 
 logger = logging.getLogger(__name__)

@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from threadpoolctl import threadpool_limits
 
 from cad.errors import ParameterError
-from fe.contact_law import ContactStatus, CoulombStep, coulomb_step, slip_frame
+from fe.contact.law import ContactStatus, CoulombStep, coulomb_step, slip_frame
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -1,6 +1,6 @@
 """The effect framework: parameters, the context an effect sees, and the two hooks.
 
-``Effect`` is the base of every candidate effect in ``fe.effect_models``; the registry and
+``Effect`` is the base of every candidate effect in ``fe.effects.models``; the registry and
 the cycle with effects are in ``fe.effects`` (which explains the two hooks).
 """
 
@@ -16,8 +16,8 @@ import numpy.typing as npt
 
 from cad.errors import ParameterError
 from fe.contact import ContactSettings
-from fe.cycle import CycleSettings
-from fe.hinge_system import Condensed, HingeSystem
+from fe.hinge.cycle import CycleSettings
+from fe.hinge.system import Condensed, HingeSystem
 
 FloatArray = npt.NDArray[np.float64]
 Values = Mapping[str, float]

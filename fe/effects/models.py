@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fe.effect_base import (
+from fe.effects.base import (
     Effect,
     EffectContext,
     FloatArray,
@@ -21,8 +21,8 @@ from fe.effect_base import (
     add_diagonal,
     map_configs,
 )
-from fe.face_contact import FOOTPRINT_RADIUS_RATIO, clamped_faces
-from fe.hinge_system import Condensed
+from fe.hinge.faces import FOOTPRINT_RADIUS_RATIO, clamped_faces
+from fe.hinge.system import Condensed
 
 
 @dataclass(frozen=True)
@@ -238,7 +238,7 @@ class FaceFriction(Effect):
     parallel to the pin, by friction: while they stick the hinge is stiffer and loses
     less; once the load exceeds what they hold (about 2μN), they slip and add
     dissipation. Modelled as extra frictional contact points in the condensed problem
-    (``fe.face_contact``): the tang's nodes on both faces inside a washer footprint
+    (``fe.hinge.faces``): the tang's nodes on both faces inside a washer footprint
     (r ≤ ``FOOTPRINT_RADIUS_RATIO`` × hole radius), each against the arm's inner face
     (``n = ∓e_z``), the same Coulomb μ as the pin, coupled to the hole points through
     the lugs' compliance. Their initial normal displacement is an overlap

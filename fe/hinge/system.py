@@ -48,8 +48,8 @@ import scipy.sparse as sp
 
 from cad.errors import MeshQualityError
 from fe.assembly import Factorization, assemble_stiffness, dofs_of, inverse_block
-from fe.contact_geometry import ContactGeometry, contact_operator
 from fe.element import ElementType
+from fe.hinge.geometry import ContactGeometry, contact_operator
 from mesh.hexmesh import HexMesh
 
 logger = logging.getLogger(__name__)

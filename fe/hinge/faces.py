@@ -12,7 +12,7 @@ every stored result), so the points are found from the mesh itself:
   tang. Each slave is projected along z onto it (a plane: the closest-point projection
   of ``project_on_facets``), giving the facet and its bilinear weights.
 
-Frames follow ``fe.contact_geometry``: ``n`` is the master's outward normal (toward the
+Frames follow ``fe.hinge.geometry``: ``n`` is the master's outward normal (toward the
 slave, ``∓e_z``), ``t1 = e_x`` (the load direction), ``t2 = n × t1``; ``g0`` is the
 geometric axial gap (the effect that uses them replaces it by a clamp overlap).
 
@@ -36,13 +36,13 @@ from cad.errors import MeshQualityError, ParameterError
 from cad.surfaces import Cylinder, Plane
 from fe.assembly import dofs_of
 from fe.contact import ContactSettings, ContactState, solve_increment
-from fe.contact_geometry import (
+from fe.hinge.geometry import (
     ContactGeometry,
     bilinear_weights,
     contact_operator,
     project_on_facets,
 )
-from fe.hinge_system import Condensed, HingeSystem
+from fe.hinge.system import Condensed, HingeSystem
 from mesh.facets import boundary_facets, select_facets
 from mesh.hexmesh import HexMesh
 

@@ -1,6 +1,6 @@
 """Newton directions by GMRES, preconditioned by an earlier LU updated to the new layout.
 
-Internal to :mod:`fe.contact` (notation of :mod:`fe.contact_newton`). The reduced
+Internal to :mod:`fe.contact` (notation of :mod:`fe.contact.newton`). The reduced
 Jacobian ``J = R W T + diag(d)`` changes in every Newton iteration, but mostly a little:
 stick blocks are entries of ``W``, slip rows and columns turn with the slip direction,
 and a few points change status. So the LU of an earlier ``J₀`` (same ``W``) is kept as
@@ -12,7 +12,7 @@ row and column of a point whose status (or slip direction, beyond ``turn_cos``) 
 * ``J₀,SS⁻¹`` follows from ``J₀⁻¹`` by a Schur complement on ``O``:
   ``J₀,SS⁻¹ y = x_S - Z_S (Z_O)⁻¹ x_O`` with ``x = J₀⁻¹ [y; 0]`` and ``Z = J₀⁻¹ E_O``;
 * ``M = [[J₀,SS, J_SN], [J_NS, J_NN]]`` is inverted by a Schur complement on ``N``;
-* the rigid amplitudes are bordered on as in :func:`fe.contact_newton.solve_bordered`.
+* the rigid amplitudes are bordered on as in :func:`fe.contact.newton.solve_bordered`.
 
 The setup costs ``|N| + |O| + k`` triangular solves; each GMRES iteration one solve with
 the base and one product with ``W`` on the closed points' DOFs. ``M`` differs from the
@@ -38,8 +38,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from cad.errors import check_range
-from fe.contact_law import ContactStatus
-from fe.contact_newton import (
+from fe.contact.law import ContactStatus
+from fe.contact.newton import (
     Factor,
     Iterate,
     Linear,

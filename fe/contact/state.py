@@ -1,0 +1,265 @@
+"""Settings, state and result of a contact increment; problem validation; a dense check.
+
+Conventions are those of :mod:`fe.contact`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from cad.errors import ParameterError, check_range
+from fe.contact.krylov import KrylovOptions
+from fe.contact.newton import Problem, evaluate
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class LinearSolver(Enum):
+    """How each Newton direction is computed (the converged solution is the same).
+
+    Attributes:
+        LU: Form and LU-factorise the reduced Jacobian, with chord steps (``chord_rate``).
+        KRYLOV: GMRES on the exact reduced system, preconditioned by an earlier LU
+            updated to the new active set (:mod:`fe.contact.krylov`); the LU is kept
+            between increments on the same ``W`` and refactorised only when needed.
+    """
+
+    LU = "lu"
+    KRYLOV = "krylov"
+
+
+@dataclass(frozen=True)
+class ContactSettings:
+    """Options of :func:`solve_increment`.
+
+    Attributes:
+        mu: Coulomb friction coefficient, ``>= 0``.
+        r_scale: Augmentation factor; point ``i`` uses ``r_i = r_scale / mean(diag W_ii)``
+            [N/mm]. Algorithmic only: the converged solution does not depend on it.
+        tol: Tolerance on the scaled residual ``ρ`` (module docstring).
+        max_iter: Newton iteration cap per increment.
+        warm_start: Start from the previous increment's ``p`` and ``α`` (else from zero).
+        armijo: Sufficient-decrease constant of the line search.
+        min_step: Smallest line-search step before a rescue is taken.
+        chord_rate: Keep reusing the last factorisation (chord steps with the exact
+            residual) while each such step divides ``ρ`` by at least ``1/chord_rate``
+            and the unknown layout is unchanged; 0 refactorises at every iteration.
+        rigid_rcond: Rigid directions whose singular value in the k×k Schur complement
+            ``Gᵀ J⁻¹ G`` is below ``rigid_rcond · max_j |G_j|² / mean(diag W)`` are
+            treated as undetermined (they get no component of ``α``).
+        linear_solver: How the Newton directions are computed (``chord_rate`` applies
+            to ``LinearSolver.LU`` only).
+        krylov: Tuning of ``LinearSolver.KRYLOV``.
+    """
+
+    mu: float = 0.0
+    r_scale: float = 1.0
+    tol: float = 1e-10
+    max_iter: int = 60
+    warm_start: bool = True
+    armijo: float = 1e-4
+    min_step: float = 1e-4
+    chord_rate: float = 0.1
+    rigid_rcond: float = 1e-10
+    linear_solver: LinearSolver = LinearSolver.KRYLOV
+    krylov: KrylovOptions = field(default_factory=KrylovOptions)
+
+    def __post_init__(self) -> None:
+        check_range("mu", self.mu, 0.0, float("inf"))
+        check_range("r_scale", self.r_scale, 0.0, float("inf"), lo_open=True, hi_open=True)
+        check_range("tol", self.tol, 0.0, 1.0, lo_open=True, hi_open=True)
+        check_range("max_iter", self.max_iter, 1, float("inf"))
+        check_range("armijo", self.armijo, 0.0, 0.5, lo_open=True, hi_open=True)
+        check_range("min_step", self.min_step, 0.0, 1.0, lo_open=True, hi_open=True)
+        check_range("chord_rate", self.chord_rate, 0.0, 1.0, hi_open=True)
+        check_range("rigid_rcond", self.rigid_rcond, 0.0, 1.0, lo_open=True, hi_open=True)
+
+
+def _frozen(
+    a: npt.ArrayLike, dtype: type, shape: tuple[int, ...], name: str
+) -> npt.NDArray[np.generic]:
+    arr: npt.NDArray[np.generic] = np.array(a, dtype=dtype, copy=True)
+    if arr.shape != shape:
+        raise ParameterError(f"{name} must have shape {shape}, got {arr.shape}")
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class ContactState:
+    """Converged contact state after an increment (arrays are read-only copies).
+
+    Attributes:
+        p: Contact forces on the slave, shape (m, 3), float64 [N], frame [n, t1, t2].
+        w: Relative displacements, shape (m, 3), float64 [mm]; ``w[:, 1:]`` is the
+            tangential reference ``w_t_prev`` of the next increment.
+        status: ContactStatus codes, shape (m,), int8.
+        alpha: Rigid-body amplitudes, shape (k,), float64 (units set by ``G``).
+    """
+
+    p: FloatArray
+    w: FloatArray
+    status: npt.NDArray[np.int8]
+    alpha: FloatArray
+
+    def __post_init__(self) -> None:
+        m = np.shape(self.p)[0] if np.ndim(self.p) == 2 else -1
+        object.__setattr__(self, "p", _frozen(self.p, np.float64, (m, 3), "p"))
+        object.__setattr__(self, "w", _frozen(self.w, np.float64, (m, 3), "w"))
+        object.__setattr__(self, "status", _frozen(self.status, np.int8, (m,), "status"))
+        k = np.size(self.alpha)
+        object.__setattr__(self, "alpha", _frozen(np.ravel(self.alpha), np.float64, (k,), "alpha"))
+
+    @classmethod
+    def initial(cls, n_points: int, n_rigid: int = 0, w: FloatArray | None = None) -> ContactState:
+        """Return the unloaded state: no force, all open, ``α = 0``.
+
+        Args:
+            n_points: Number of contact points ``m``.
+            n_rigid: Number of rigid amplitudes ``k``.
+            w: Relative displacement at zero load, shape (m, 3) [mm] (default zero); its
+                tangential part is the slip reference, its normal part only enters
+                ``normal_work`` of the first increment.
+
+        Returns:
+            The initial state.
+        """
+        w0 = np.zeros((n_points, 3)) if w is None else w
+        status = np.zeros(n_points, dtype=np.int8)
+        return cls(np.zeros((n_points, 3)), w0, status, np.zeros(n_rigid))
+
+
+@dataclass(frozen=True)
+class IncrementResult:
+    """Outcome of one increment.
+
+    Attributes:
+        state: The converged state.
+        iterations: Newton iterations used.
+        residuals: Scaled residual ``ρ`` at every iterate (the last is below ``tol``).
+        n_open: Number of open points.
+        n_stick: Number of sticking points.
+        n_slip: Number of slipping points.
+        friction_work: ``-½ (p_t,prev + p_t)·Δw_t``, shape (m,), float64 [N·mm].
+        normal_work: ``-½ (p_n,prev + p_n) Δw_n``, shape (m,), float64 [N·mm].
+        dissipation: ``-p_t·Δw_t >= 0`` (backward Euler), shape (m,), float64 [N·mm].
+        rescues: How many rescues (predictor or ``r`` change) were needed.
+        factorizations: LU factorisations done (iterations minus chord and Krylov steps).
+        linear_iterations: GMRES iterations done (``LinearSolver.KRYLOV``).
+    """
+
+    state: ContactState
+    iterations: int
+    residuals: tuple[float, ...]
+    n_open: int
+    n_stick: int
+    n_slip: int
+    friction_work: FloatArray
+    normal_work: FloatArray
+    dissipation: FloatArray
+    rescues: int
+    factorizations: int
+    linear_iterations: int = 0
+
+
+def validate_problem(
+    W: FloatArray,
+    w_free: FloatArray,
+    state_prev: ContactState,
+    G: FloatArray | None,
+    e: FloatArray | None,
+) -> Problem:
+    """Check shapes and finiteness of an increment's data and return its ``Problem``.
+
+    Raises:
+        ParameterError: Naming the array whose shape or values are wrong.
+    """
+    m = state_prev.p.shape[0]
+    W = np.asarray(W, dtype=np.float64)
+    if W.shape != (3 * m, 3 * m):
+        raise ParameterError(f"W must have shape {(3 * m, 3 * m)} for {m} points, got {W.shape}")
+    w_free = np.asarray(w_free, dtype=np.float64)
+    if w_free.shape != (m, 3):
+        raise ParameterError(f"w_free must have shape {(m, 3)}, got {w_free.shape}")
+    # One pass without a temporary: NaN and inf propagate into the sum (an overflowing
+    # sum of finite entries falls back to the entrywise check).
+    w_sum = float(np.sum(W))
+    finite_w = np.isfinite(w_sum) or bool(np.all(np.isfinite(W)))
+    if not (finite_w and np.all(np.isfinite(w_free))):
+        raise ParameterError("W and w_free must be finite, got NaN or inf")
+    d_n = np.diag(W)[0::3]
+    if np.any(d_n <= 0.0):
+        i = int(np.argmin(d_n))
+        raise ParameterError(f"W_nn must be > 0 at every point, got {d_n[i]:g} at point {i}")
+    k = state_prev.alpha.shape[0]
+    if (G is None) != (e is None):
+        raise ParameterError("G and e must be given together, got only one of them")
+    G_arr = np.zeros((3 * m, k)) if G is None else np.asarray(G, dtype=np.float64)
+    e_arr = np.zeros(k) if e is None else np.asarray(e, dtype=np.float64)
+    if G_arr.shape != (3 * m, k) or e_arr.shape != (k,):
+        raise ParameterError(
+            f"G and e must have shapes {(3 * m, k)} and {(k,)} (k from state_prev.alpha), "
+            f"got {G_arr.shape} and {e_arr.shape}"
+        )
+    return Problem(W, w_free, G_arr, e_arr, np.array(state_prev.w[:, 1:]), 0.0, w_sum)
+
+
+class Complementarity(NamedTuple):
+    """Alart–Curnier residual and its generalised Jacobian (see :func:`complementarity`).
+
+    Attributes:
+        residual: ``C``, shape (m, 3), float64 [N].
+        jacobian: ``∂C/∂p`` with α fixed, shape (3m, 3m), float64 [-], node-major.
+        status: ContactStatus codes of the trial, shape (m,), int8.
+    """
+
+    residual: FloatArray
+    jacobian: FloatArray
+    status: npt.NDArray[np.int8]
+
+
+def complementarity(
+    W: FloatArray,
+    w_free: FloatArray,
+    state_prev: ContactState,
+    p: FloatArray,
+    settings: ContactSettings,
+    *,
+    alpha: FloatArray | None = None,
+    G: FloatArray | None = None,
+) -> Complementarity:
+    """Evaluate ``C(p) = p - λ(p - r g(p))`` and ``∂C/∂p = (I - D) + r D W`` densely.
+
+    Meant for checks and small problems (it forms a (3m, 3m) matrix).
+
+    Args:
+        W: Delassus operator, shape (3m, 3m), float64 [mm/N].
+        w_free: Free relative displacement, shape (m, 3), float64 [mm].
+        state_prev: Previous converged state (``w_t_prev``).
+        p: Contact forces at which to evaluate, shape (m, 3), float64 [N].
+        settings: Supplies ``mu`` and ``r_scale``.
+        alpha: Rigid amplitudes, shape (k,) (default zero).
+        G: Rigid-body map, shape (3m, k) (default none).
+
+    Returns:
+        Residual, Jacobian and trial status.
+    """
+    k = state_prev.alpha.shape[0]
+    e = None if G is None else np.zeros(k)
+    prob = validate_problem(W, w_free, state_prev, G, e)._replace(mu=settings.mu)
+    m = p.shape[0]
+    r = settings.r_scale / np.diagonal(prob.W).reshape(m, 3).mean(axis=1)
+    a = np.zeros(k) if alpha is None else np.asarray(alpha, dtype=np.float64)
+    it = evaluate(prob, np.asarray(p, dtype=np.float64), a, r)
+    D = it.law.tangent  # (m, 3, 3)
+    jac = np.zeros((3 * m, 3 * m))
+    rows = np.arange(3 * m).reshape(m, 3)
+    jac[rows[:, :, None], rows[:, None, :]] = np.eye(3) - D
+    rD = r[:, None, None] * D
+    jac += np.einsum("mab,mbj->maj", rD, prob.W.reshape(m, 3, 3 * m)).reshape(3 * m, 3 * m)
+    return Complementarity(it.C, jac, it.law.status)
