@@ -1,0 +1,396 @@
+"""Candidate fitting for ``diagnose``: measured features, the χ² misfit and one candidate's fit.
+
+``fit_candidate`` fits one candidate effect's parameter and runs the false-alarm checks
+(significance, held-out folds, bounds) of steps 3–4 in the ``validation.diagnose`` module
+docstring; ``validation.diagnose`` re-exports the public names here.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from scipy import optimize, stats
+
+from validation.evaluate import ModelEvaluator
+from validation.features import FeatureSettings, derived, feature_sigma, loop_features
+from validation.loops import process_loop
+from validation.measurements import MeasurementSet
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class DiagnoseSettings:
+    """Fitting and decision settings (``validation.diagnose`` module docstring).
+
+    Attributes:
+        features: Model floor of the feature σ.
+        alpha: False-alarm probability of the whole diagnosis.
+        grid_points: Grid values per candidate parameter.
+        grid_decades: Decades the grid spans below the parameter's upper bound.
+        refine_iter: True-model evaluations of the refinement.
+        heldout_min_gain: Fraction the held-out χ² must fall by.
+        explained_min: Fraction of the excess χ² the best candidate must explain.
+        increments_per_stage: Increments per stage of the diagnosis runs (None: model file's).
+        clearance_increments: Increments across the free play (None: model file's).
+    """
+
+    features: FeatureSettings = field(default_factory=FeatureSettings)
+    alpha: float = 0.01
+    grid_points: int = 7
+    grid_decades: float = 3.0
+    refine_iter: int = 6
+    heldout_min_gain: float = 0.25
+    explained_min: float = 0.9
+    increments_per_stage: int | None = 8
+    clearance_increments: int | None = 16
+
+
+@dataclass(frozen=True)
+class MeasuredFeatures:
+    """Measured features per design point.
+
+    A design point measured by η only (an η-only table such as the paper's Table 1) has
+    one observation, its η, kept in column 1 with columns 0 and 2 NaN; its residual is
+    ``(η_model − η)/σ_η`` with ``η_model = W/(π Fg δ_max)`` from the model's features.
+
+    Attributes:
+        points: (clearance [mm], amplitude [N]) per row.
+        values: Features, shape (n_points, 3) (η-only rows: [NaN, η, NaN]).
+        sigma: Their σ, shape (n_points, 3).
+        eta_only: Rows measured by η only, shape (n_points,).
+    """
+
+    points: tuple[tuple[float, float], ...]
+    values: FloatArray
+    sigma: FloatArray
+    eta_only: npt.NDArray[np.bool_] | None = None
+
+    @property
+    def amplitudes(self) -> FloatArray:
+        """Amplitude of each row, shape (n_points,) [N]."""
+        return np.array([p[1] for p in self.points])
+
+    @property
+    def eta_rows(self) -> npt.NDArray[np.bool_]:
+        """Rows measured by η only, shape (n_points,)."""
+        if self.eta_only is None:
+            return np.zeros(len(self.points), dtype=bool)
+        return np.asarray(self.eta_only, dtype=bool)
+
+    @property
+    def n_obs(self) -> int:
+        """Number of observations N: three per loop, one per η-only design point."""
+        k = int(np.count_nonzero(self.eta_rows))
+        return 3 * (len(self.points) - k) + k
+
+
+def measured_features(data: MeasurementSet, settings: FeatureSettings) -> MeasuredFeatures:
+    """Summarise every design point of a measurement set (replicates averaged).
+
+    A design point with loops uses them (module ``validation.features``); one with only
+    η values (an η-only table) becomes an η-only row: η the mean of its values, σ_η the
+    replicates' standard deviation if there are several, combined in quadrature with
+    ``eta_rel_sigma · η`` (the stated uncertainty: tables carry none) and the model floor
+    ``rel_floor · η + eta_floor``.
+    """
+    points, values, sigmas, eta_only = [], [], [], []
+    by_id = data.by_id()
+    for (_, clearance, _, amp), ids in data.replicate_groups().items():
+        loops = []
+        etas = []
+        for cid in ids:
+            case = by_id[cid]
+            if case.loop is not None:
+                loops.append(
+                    process_loop(case.loop.force_n, case.loop.displacement_mm, case.loop.source)
+                )
+            elif case.eta is not None:
+                etas.append(float(case.eta))
+        points.append((clearance, amp))
+        if loops:
+            feats = np.array([loop_features(p) for p in loops])
+            rep = np.std(feats, axis=0, ddof=1) if len(loops) > 1 else None
+            values.append(feats.mean(axis=0))
+            sigmas.append(feature_sigma(loops, settings, rep))
+            eta_only.append(False)
+        elif etas:
+            eta = float(np.mean(etas))
+            rep_eta = float(np.std(etas, ddof=1)) if len(etas) > 1 else 0.0
+            s_eta = math.sqrt(
+                rep_eta**2
+                + (settings.eta_rel_sigma * eta) ** 2
+                + (settings.rel_floor * eta + settings.eta_floor) ** 2
+            )
+            values.append(np.array([np.nan, eta, np.nan]))
+            sigmas.append(np.array([np.nan, s_eta, np.nan]))
+            eta_only.append(True)
+        else:
+            points.pop()
+    return MeasuredFeatures(
+        tuple(points), np.array(values), np.array(sigmas), np.array(eta_only, dtype=bool)
+    )
+
+
+def _eta_without_free_play(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:
+    """η of model features with the free play taken off δ_max, shape (n_points,).
+
+    A stated η (an η-only table, like the paper's, or ``hingelab cycle``'s report)
+    excludes the free play: ``η = W / (π Fg (δ_max − 2Δr))``; the loop area W is the same
+    with or without the zero-force traverse.
+    """
+    elastic = np.array(model, dtype=np.float64, copy=True)
+    elastic[:, 0] -= 2.0 * np.array([p[0] for p in meas.points])
+    return derived(elastic, meas.amplitudes)[1]
+
+
+def residuals(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:
+    """Return (model − measured)/σ, shape (n_points, 3); a failed run (NaN) counts 1e3.
+
+    η-only rows: ``[0, (η_model − η)/σ_η, 0]``.
+    """
+    model = np.asarray(model, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = (model - meas.values) / meas.sigma
+        eta_rows = meas.eta_rows
+        if np.any(eta_rows):
+            eta_model = _eta_without_free_play(model, meas)[eta_rows]
+            r_eta = (eta_model - meas.values[eta_rows, 1]) / meas.sigma[eta_rows, 1]
+            r[eta_rows] = 0.0
+            r[eta_rows, 1] = r_eta
+    return np.where(np.isfinite(r), r, 1e3)
+
+
+def chi2(
+    model: FloatArray, meas: MeasuredFeatures, rows: npt.NDArray[np.bool_] | None = None
+) -> float:
+    """Return Σ r² over the rows selected (all by default)."""
+    r = residuals(model, meas)
+    return float(np.sum(r[rows] ** 2) if rows is not None else np.sum(r**2))
+
+
+@dataclass(frozen=True)
+class CandidateFit:
+    """One candidate effect fitted to the data.
+
+    Attributes:
+        name: Effect name.
+        param: Its parameter name.
+        value: Fitted value.
+        unit: Its unit.
+        chi2: χ² with the effect.
+        delta_chi2: χ²₀ − χ².
+        f_stat: The inflation-robust F statistic.
+        p_value: Its p-value (before the Bonferroni factor).
+        significant: F beyond the Bonferroni-corrected quantile.
+        heldout_chi2_base: Held-out χ² of the baseline, summed over folds.
+        heldout_chi2: Held-out χ² with the effect fitted on the other folds.
+        heldout_ok: Held-out χ² fell by at least ``heldout_min_gain``.
+        at_bound: The fit sits at an end of the grid (or at 0: the effect switched off).
+        aic: χ² + 2k.
+        bic: χ² + k ln N.
+        features: Model features at the fit, shape (n_points, 3).
+        model_effects: The effects of that fit: the candidate and the model's own
+            post-only effects as re-tuned with it.
+    """
+
+    name: str
+    param: str
+    value: float
+    unit: str
+    chi2: float
+    delta_chi2: float
+    f_stat: float
+    p_value: float
+    significant: bool
+    heldout_chi2_base: float
+    heldout_chi2: float
+    heldout_ok: bool
+    at_bound: bool
+    aic: float
+    bic: float
+    features: FloatArray = field(repr=False, compare=False)
+    model_effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+
+    @property
+    def counts(self) -> bool:
+        """Significant and confirmed on held-out data."""
+        return self.significant and self.heldout_ok
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return a JSON-ready dict (no arrays)."""
+        out = {k: v for k, v in vars(self).items() if k not in ("features", "model_effects")}
+        return out | {
+            "counts": self.counts,
+            "model_effects": {k: dict(v) for k, v in self.model_effects.items()},
+        }
+
+
+def _grid(hi: float, settings: DiagnoseSettings) -> FloatArray:
+    return hi * 10.0 ** np.linspace(-settings.grid_decades, 0.0, settings.grid_points)
+
+
+def _interp_features(grid: FloatArray, feats: FloatArray, p: float) -> FloatArray:
+    """Linear interpolation in p of features on the grid, shape (n_points, 3)."""
+    j = int(np.clip(np.searchsorted(grid, p) - 1, 0, len(grid) - 2))
+    t = (p - grid[j]) / (grid[j + 1] - grid[j])
+    return np.asarray((1 - t) * feats[j] + t * feats[j + 1], dtype=np.float64)
+
+
+def _scan(
+    grid: FloatArray,
+    feats: FloatArray,
+    base: FloatArray,
+    meas: MeasuredFeatures,
+    rows: npt.NDArray[np.bool_],
+) -> tuple[float, FloatArray]:
+    """Return (parameter, features) minimising χ² over ``rows`` on the interpolant.
+
+    A dense log scan between the grid's ends; the effect switched off (p = 0, the
+    baseline ``base``) competes too.
+    """
+    finite = np.all(np.isfinite(feats.reshape(len(grid), -1)), axis=1)
+    g, f = grid[finite], feats[finite]
+    best = (chi2(base, meas, rows), 0.0, base)
+    if len(g) < 2:
+        return best[1], best[2]
+    for p in 10.0 ** np.linspace(math.log10(g[0]), math.log10(g[-1]), 301):
+        fp = _interp_features(g, f, float(p))
+        c = chi2(fp, meas, rows)
+        if c < best[0]:
+            best = (c, float(p), fp)
+    return best[1], best[2]
+
+
+def _folds(points: Sequence[tuple[float, float]]) -> list[npt.NDArray[np.bool_]]:
+    """Held-out masks: leave-one-amplitude-rank-out, else leave-one-clearance-out.
+
+    Fold k holds the k-th smallest amplitude of every clearance, so every training set
+    still spans all clearances (leaving a whole clearance out fails to confirm an effect
+    that only one clearance resolves, e.g. a tangential compliance at Δr = 0). With one
+    amplitude per clearance, one fold per clearance.
+    """
+    rank = []
+    for c, a in points:
+        amps = sorted({p[1] for p in points if p[0] == c})
+        rank.append(amps.index(a))
+    ranks = np.array(rank)
+    if len(set(rank)) >= 2:
+        return [ranks == k for k in sorted(set(rank))]
+    clearances = sorted({p[0] for p in points})
+    return [np.array([p[0] == c for p in points]) for c in clearances]
+
+
+def _retuned_features(
+    evaluator: ModelEvaluator, effects: Mapping[str, Mapping[str, float]], meas: MeasuredFeatures
+) -> FloatArray:
+    """Features with ``effects``, the model's own post-only effects re-tuned (``_retuned``)."""
+    return evaluator.features(_retuned(evaluator, effects, meas))
+
+
+def _retuned(
+    evaluator: ModelEvaluator, effects: Mapping[str, Mapping[str, float]], meas: MeasuredFeatures
+) -> dict[str, dict[str, float]]:
+    """Return ``effects`` plus the model's own post-only effects re-tuned to the data.
+
+    A post-only effect already in the model (e.g. a fitted ``frame_compliance``) costs no
+    cycle, so its parameter is refitted (bounded Brent) with every candidate value: an
+    effect fitted alone in an earlier round has absorbed part of the next one, and a
+    candidate judged against that frozen value would look weaker than it is.
+    """
+    from fe.effects import REGISTRY
+    from validation.evaluate import is_post_only
+
+    own = {n: dict(p) for n, p in evaluator.spec.effects.items() if is_post_only(n)}
+    extra = {n: dict(p) for n, p in effects.items()}
+    for n in own:
+        for par in REGISTRY[n].params:
+
+            def cost(v: float, n: str = n, k: str = par.name) -> float:
+                trial = {**own, **extra, n: {**own[n], k: float(v)}}
+                return chi2(evaluator.features(trial), meas)
+
+            res = optimize.minimize_scalar(
+                cost, bounds=(par.lo, par.hi), method="bounded", options={"xatol": par.hi * 1e-4}
+            )
+            own[n][par.name] = float(res.x)
+    return {**own, **extra}
+
+
+def fit_candidate(
+    evaluator: ModelEvaluator,
+    name: str,
+    meas: MeasuredFeatures,
+    base_features: FloatArray,
+    n_tried: int,
+    settings: DiagnoseSettings,
+) -> CandidateFit:
+    """Fit one candidate's parameter and judge it (``validation.diagnose`` docstring, steps 3–4)."""
+    from fe.effects import REGISTRY
+
+    spec = REGISTRY[name].params[0]
+    grid = _grid(spec.hi, settings)
+
+    def at(p: float) -> FloatArray:
+        return _retuned_features(evaluator, {name: {spec.name: p}}, meas)
+
+    feats = np.array([at(float(p)) for p in grid])
+    rows = np.ones(len(meas.points), dtype=bool)
+    p0, _ = _scan(grid, feats, base_features, meas, rows)
+    c0 = chi2(base_features, meas)
+    if p0 == 0.0:
+        p0 = float(grid[0])
+
+    def cost(u: float) -> float:
+        return chi2(at(float(10.0**u)), meas)
+
+    u0 = math.log10(p0)
+    lo, hi = math.log10(grid[0]), math.log10(grid[-1])
+    res = optimize.minimize_scalar(
+        cost,
+        bounds=(max(lo, u0 - 0.25), min(hi, u0 + 0.25)),
+        method="bounded",
+        options={"maxiter": settings.refine_iter, "xatol": 0.01},
+    )
+    candidates = [(c0, 0.0), (float(res.fun), float(10.0**res.x))] + [
+        (chi2(feats[j], meas), float(grid[j])) for j in range(len(grid))
+    ]
+    c2, value = min(candidates)
+    fitted = at(value) if value > 0 else base_features
+    model_effects = _retuned(evaluator, {name: {spec.name: value}}, meas)
+    n = meas.n_obs
+    d = c0 - c2
+    f_stat = d / max(1.0, c2 / max(n - 1, 1))
+    p_value = float(stats.f.sf(f_stat, 1, max(n - 1, 1)))
+    significant = p_value < settings.alpha / max(n_tried, 1)
+    held_base = held = 0.0
+    for test in _folds(meas.points):
+        train = ~test
+        _, f_fold = _scan(grid, feats, base_features, meas, train)
+        held_base += chi2(base_features, meas, test)
+        held += chi2(f_fold, meas, test)
+    at_bound = value <= grid[0] * 1.0001 or value >= grid[-1] * 0.9999
+    return CandidateFit(
+        name=name,
+        param=spec.name,
+        value=value,
+        unit=spec.unit,
+        chi2=c2,
+        delta_chi2=d,
+        f_stat=f_stat,
+        p_value=p_value,
+        significant=bool(significant),
+        heldout_chi2_base=held_base,
+        heldout_chi2=held,
+        heldout_ok=bool(held <= (1.0 - settings.heldout_min_gain) * held_base),
+        at_bound=bool(at_bound),
+        aic=c2 + 2.0,
+        bic=c2 + math.log(n),
+        features=fitted,
+        model_effects=model_effects,
+    )
