@@ -23,18 +23,20 @@ from _common import print_table, run_isolated
 
 
 def case(level: int, clearance: float, threads: int = 1) -> dict[str, object]:
-    from cad.general import GeneralHingeParams, make_general_hinge
-    from fe.hinge.cycle import CycleSettings, run_cycle
-    from fe.hinge.system import build_system
-    from mesh.build import mesh_hinge
+    from cad.general import GeneralHingeParams
+    from fe.hinge.cycle import CycleSettings
+    from fe.service import DesignPoint, ModelService, ModelSpec
     from mesh.settings import MeshSettings
 
-    mesh, _rep = mesh_hinge(
-        make_general_hinge(GeneralHingeParams(clearance_mm=clearance)),
+    spec = ModelSpec(
+        "general",
+        GeneralHingeParams(),
         MeshSettings(refinement=level),
+        CycleSettings(amplitude_n=400.0, blas_threads=threads),
     )
-    system = build_system(mesh)
-    res = run_cycle(system, clearance, CycleSettings(amplitude_n=400.0, blas_threads=threads))
+    service = ModelService()
+    system = service.prepare(spec, clearance).system
+    res = service.run_point(spec, DesignPoint(400.0, clearance))
     m = res.metrics()
     t = {**system.timings_s, **res.timings_s}
     return {

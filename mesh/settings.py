@@ -24,7 +24,7 @@ class MeshSettings:
             pin with clearance touches over a few degrees only (1 = uniform). With a
             uniform mesh the contact at Δr = 0.1 mm is one node row wide and η loses its
             amplitude dependence; graded 6×, η at 400 N agrees within 1.5 % with a mesh
-            of twice the contact points (closing note of issue 3).
+            of twice the contact points.
     """
 
     size_mm: float = 3.0

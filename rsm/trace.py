@@ -530,7 +530,12 @@ def trace_as_dict(t: PointTrace) -> dict[str, object]:
 
 
 def export_table(
-    db_path: str | Path, csv_path: str | Path, *, study: str, include_failed: bool = False
+    db_path: str | Path,
+    csv_path: str | Path,
+    *,
+    study: str,
+    include_failed: bool = False,
+    point_ids: Sequence[int] | None = None,
 ) -> Path:
     """Write a study's points as a CSV table that ``hingelab rsm fit`` can read.
 
@@ -544,6 +549,8 @@ def export_table(
         csv_path: The table to write.
         study: The study to export.
         include_failed: Also export failed points (their results are usually blank).
+        point_ids: Export only these points (e.g. the points of one run of a study
+            whose earlier runs used other settings); None exports all.
 
     Returns:
         The CSV path.
@@ -566,6 +573,9 @@ def export_table(
         ).fetchall()
         par = {(p, n): v for p, n, v in con.execute("SELECT point_id, name, value FROM params")}
         res = {(p, n): v for p, n, v in con.execute("SELECT point_id, name, value FROM results")}
+    if point_ids is not None:
+        wanted = set(point_ids)
+        pts = [(p, st) for p, st in pts if p in wanted]
     ids = {p for p, _ in pts}
     pnames = sorted({n for p, n in par if p in ids})
     rnames = sorted({n for p, n in res if p in ids})

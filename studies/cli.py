@@ -38,13 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress to stderr")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in SUBCOMMAND_MODULES:
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as err:
-            if err.name == name:  # that subcommand is not written yet; others still work
-                continue
-            raise
-        module.register(sub)
+        importlib.import_module(name).register(sub)
     return parser
 
 
@@ -61,6 +55,13 @@ def main(argv: list[str] | None = None) -> int:
     except (HingelabError, FileNotFoundError) as err:
         print(f"hingelab {args.command}: error: {err}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print(
+            f"hingelab {args.command}: interrupted; every finished point is kept "
+            "(rerun the same command to resume)",
+            file=sys.stderr,
+        )
+        return 130
 
 
 if __name__ == "__main__":

@@ -96,8 +96,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _compare(spec: ModelSpec, data: MeasurementSet, args: argparse.Namespace) -> dict[str, object]:
     """Re-run the comparison with the calibrated model into ``args.out/compare``; its summary."""
-    from studies.cmd_compare import compare_and_write
     from validation.compare import CompareSettings
+    from validation.workflow import compare_and_write
 
     folder = args.out / "compare"
     cmp, _report = compare_and_write(

@@ -13,19 +13,11 @@ in the output); 1 only for bad input.
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import time
-from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
-import numpy as np
-
-from cad.errors import DataError, ParameterError
 from studies.pipeline import dumps
-from validation.compare import METRIC_LABELS, METRICS, CompareSettings, Comparison, ModelResult
-from validation.measurements import Case, Loop
-from validation.model_file import ModelSpec
+from validation.compare import METRIC_LABELS, METRICS, CompareSettings, Comparison
+from validation.workflow import compare_and_write
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -55,136 +47,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )
     p.add_argument("--no-plots", action="store_true", help="skip the pictures")
     p.set_defaults(func=run)
-
-
-def _check_cases(spec: ModelSpec, cases: Sequence[Case]) -> None:
-    if spec.kind != "general":
-        raise ParameterError(
-            f"compare supports hinge kind 'general' only for now, got {spec.kind!r}"
-        )
-    for c in cases:
-        if c.hinge != "general":
-            raise DataError(
-                f"case {c.case_id!r}: hinge {c.hinge!r}; compare supports the general hinge only for now"
-            )
-        if c.preload_n != 0.0:
-            raise DataError(
-                f"case {c.case_id!r}: preload_N = {c.preload_n:g}, but the general hinge has no preload"
-            )
-
-
-def run_model_for_cases(
-    spec: ModelSpec, cases: Sequence[Case], *, with_free_play: bool = True
-) -> tuple[dict[str, ModelResult], dict[tuple[float, float], Any]]:
-    """Run the model's cycle at every (clearance, amplitude) of the cases.
-
-    One mesh, one factorisation and one pair of condensed configurations per clearance,
-    reused for every amplitude there; replicates share one run. The model's effects
-    (``spec.effects``, e.g. written by ``hingelab calibrate``) are switched on.
-
-    Returns:
-        (case_id → ModelResult, (clearance, amplitude) → CycleResult).
-    """
-    from cad.general import make_general_hinge
-    from fe.effects import run_cycle_with_effects
-    from fe.hinge.cycle import run_cycle
-    from fe.hinge.system import build_system
-    from mesh.build import mesh_hinge
-    from validation.model_file import with_clearance
-
-    runs: dict[tuple[float, float], Any] = {}
-    for clearance in sorted({c.clearance_mm for c in cases}):
-        model = make_general_hinge(with_clearance(spec, clearance))
-        mesh, _ = mesh_hinge(model, spec.mesh)
-        system = build_system(mesh)
-        configs = None
-        for amp in sorted({c.amplitude_n for c in cases if c.clearance_mm == clearance}):
-            settings = dataclasses.replace(spec.cycle, amplitude_n=amp)
-            if spec.effects:  # the model's effects act on the base configurations
-                with_effects = run_cycle_with_effects(
-                    system, clearance, settings, spec.effects, configs=configs
-                )
-                result, configs = with_effects.result, with_effects.base_configs
-            else:
-                result = run_cycle(system, clearance, settings, configs=configs)
-                configs = result.configs
-            runs[(clearance, amp)] = result
-    out = {}
-    for c in cases:
-        r = runs[(c.clearance_mm, c.amplitude_n)]
-        # a stated η (an η-only table, like the paper's) excludes the free play, as
-        # `hingelab cycle` reports it; a measured loop includes it (the grips see it)
-        free_play = with_free_play and c.loop is not None
-        F, d = r.machine_path() if free_play else r.loop_arrays()[:2]
-        source = f"model: Δr = {c.clearance_mm:g} mm, Fg = {c.amplitude_n:g} N"
-        out[c.case_id] = ModelResult(Loop(F, d, None, source), r.metrics())
-    return out, runs
-
-
-def _write_model_loops(
-    runs: dict[tuple[float, float], Any], out: Path, free_play: bool
-) -> list[str]:
-    folder = out / "model_loops"
-    folder.mkdir(parents=True, exist_ok=True)
-    files = []
-    for (clearance, amp), r in runs.items():
-        F, d = r.machine_path() if free_play else r.loop_arrays()[:2]
-        path = folder / f"clearance_{clearance:g}mm_F{amp:g}N.csv"
-        np.savetxt(
-            path,
-            np.column_stack([F, d]),
-            delimiter=",",
-            header="force_N,displacement_mm",
-            comments="",
-            fmt="%.10g",
-        )
-        files.append(str(path))
-    return files
-
-
-def compare_and_write(
-    spec: ModelSpec,
-    data: Any,
-    out: Path,
-    settings: CompareSettings,
-    *,
-    free_play: bool = True,
-    plots: bool = True,
-) -> tuple[Comparison, dict[str, Any]]:
-    """Run the model at every case, compare, write ``out/comparison.json``, loops and pictures.
-
-    Args:
-        spec: The model (with its effects).
-        data: The measurement set (``validation.measurements.MeasurementSet``).
-        out: Output folder (created).
-        settings: Pass/fail settings.
-        free_play: Compare with the model loop including the 4Δr free play traverse.
-        plots: Draw the pictures.
-
-    Returns:
-        (the comparison, the report written to ``comparison.json``).
-    """
-    from validation.compare import compare
-
-    t0 = time.perf_counter()
-    _check_cases(spec, data.cases)
-    models, runs = run_model_for_cases(spec, data.cases, with_free_play=free_play)
-    cmp = compare(models, data, settings)
-    out.mkdir(parents=True, exist_ok=True)
-    files: dict[str, Any] = {"model_loops": _write_model_loops(runs, out, free_play)}
-    if plots:
-        from validation.plots import write_comparison_plots
-
-        files.update({k: str(v) for k, v in write_comparison_plots(cmp, out).items()})
-    files["comparison_json"] = str(out / "comparison.json")
-    report = {
-        **cmp.to_dict(),
-        "model_loop_free_play": free_play,
-        "files": files,
-        "wall_s": time.perf_counter() - t0,
-    }
-    (out / "comparison.json").write_text(dumps(report))
-    return cmp, report
 
 
 def run(args: argparse.Namespace) -> int:

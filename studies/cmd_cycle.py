@@ -10,8 +10,8 @@ from pathlib import Path
 from typing import Any
 
 from cad.errors import ParameterError
-from studies.cmd_mesh import add_geometry_arguments, settings_from_args
-from studies.pipeline import build_and_mesh, dumps, make_model
+from studies.args import add_geometry_arguments, settings_from_args
+from studies.pipeline import dumps
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -70,47 +70,32 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab cycle``."""
-    from fe.hinge.cycle import run_cycle
     from fe.hinge.report import write_loop_csv, write_loop_png, write_time_series
-    from fe.hinge.system import build_system
+    from fe.service import DesignPoint, ModelService
 
     t0 = time.perf_counter()
     if args.frames < 0:
-        raise ParameterError(f"frames must be ≥ 0, got {args.frames}")
-    model, mesh_settings, base, effects = _model_from_args(args)
-    overrides = {
-        k: v
-        for k, v in {
-            "amplitude_n": args.amplitude,
-            "mu": args.mu,
-            "increments_per_stage": args.increments,
-            "clearance_increments": args.increments,
-            "n_cycles": args.cycles,
-        }.items()
-        if v is not None
-    }
-    settings = dataclasses.replace(base, **overrides)
-    clearance = float(model.params.clearance_mm)
-    meshed = build_and_mesh(model, mesh_settings, args.out)
-    system = build_system(meshed.mesh)
+        raise ParameterError(f"--frames must be ≥ 0, got {args.frames}")
+    spec = _spec_from_args(args)
+    point = DesignPoint(amplitude_n=spec.cycle.amplitude_n, clearance_mm=_clearance(spec))
+    service = ModelService(geometry_dir=lambda _c: args.out)
+    prepared = service.prepare(spec, point.clearance_mm)
     bar = _progress_bar(args)
-    if effects:  # effects act on the condensed system; the progress bar is not threaded through
-        from fe.effects import run_cycle_with_effects
-
-        result = run_cycle_with_effects(system, clearance, settings, effects).result
-    else:
-        result = run_cycle(
-            system, clearance, settings, progress=None if bar is None else bar.update_to
-        )
+    # effects act on the condensed system; the progress bar is not threaded through them
+    result = service.run_point(
+        spec, point, progress=None if bar is None or spec.effects else bar.update_to
+    )
     if bar is not None:
         bar.close()
+    system, meshed, settings = prepared.system, prepared.meshed, result.settings
     files = {k: str(v) for k, v in meshed.files.items()}
     files["loop_csv"] = str(write_loop_csv(result, args.out / "loop.csv"))
     files["loop_png"] = str(
         write_loop_png(
             result,
             args.out / "loop.png",
-            title=f"general hinge, Δr = {clearance:g} mm, Fg = {settings.amplitude_n:g} N, μ = {settings.mu:g}",
+            title=f"general hinge, Δr = {point.clearance_mm:g} mm, "
+            f"Fg = {settings.amplitude_n:g} N, μ = {settings.mu:g}",
         )
     )
     if args.frames:
@@ -133,38 +118,61 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _model_from_args(args: argparse.Namespace) -> tuple[Any, Any, Any, dict[str, Any]]:
-    """Return (HingeModel, MeshSettings, CycleSettings, effects) from a model file or the options."""
-    from cad.general import make_general_hinge
-    from fe.hinge.cycle import CycleSettings
+def _clearance(spec: Any) -> float:
+    return float(getattr(spec.hinge, "clearance_mm", 0.0))
+
+
+def _spec_from_args(args: argparse.Namespace) -> Any:
+    """Return the ModelSpec of a model file or of the options, with the overrides applied."""
+    from cad.general import GeneralHingeParams
+    from fe.hinge.protocol import CycleSettings
+    from fe.service import ModelSpec, check_spec
 
     if args.model is None:
         if args.hinge != "general":
             raise ParameterError(
-                f"cycle supports --hinge general only for now, got --hinge {args.hinge}"
+                f"the load cycle runs --hinge general only for now, got --hinge {args.hinge} "
+                "(the bearing hinge is built and meshed: hingelab mesh --hinge bearing)"
             )
-        model = make_model(args.hinge, clearance_mm=args.clearance)
-        return model, settings_from_args(args), CycleSettings(), {}
-    from validation.model_file import read_model
+        if args.preload is not None:
+            raise ParameterError(
+                f"--preload applies to the bearing hinge only, got --preload {args.preload}"
+            )
+        hinge = GeneralHingeParams(clearance_mm=0.0 if args.clearance is None else args.clearance)
+        spec = ModelSpec("general", hinge, settings_from_args(args), CycleSettings())
+    else:
+        from validation.model_file import read_model
 
-    given = [
-        f"--{n}"
-        for n in ("clearance", "preload", "size", "contact_size")
-        if getattr(args, n) is not None
-    ]
-    if given or args.refinement != 0 or args.hinge != "general":
-        raise ParameterError(
-            f"--model describes the geometry and mesh; drop {given or ['--hinge/--refinement']} "
-            "(only --amplitude, --mu, --increments, --cycles may override it)"
-        )
-    from fe.effects import REGISTRY
-
-    spec = read_model(args.model, REGISTRY)
-    if spec.kind != "general":
-        raise ParameterError(
-            f"cycle supports kind = 'general' only for now, got {spec.kind!r} in {args.model}"
-        )
-    return make_general_hinge(spec.hinge), spec.mesh, spec.cycle, dict(spec.effects)
+        given = [
+            f"--{n}"
+            for n in ("clearance", "preload", "size", "contact_size")
+            if getattr(args, n) is not None
+        ]
+        if given or args.refinement != 0 or args.hinge != "general":
+            raise ParameterError(
+                f"--model describes the geometry and mesh; drop {given or ['--hinge/--refinement']} "
+                "(only --amplitude, --mu, --increments, --cycles may override it)"
+            )
+        spec = read_model(args.model)
+    check_spec(spec)
+    overrides = {
+        k: v
+        for k, v in {
+            "amplitude_n": args.amplitude,
+            "mu": args.mu,
+            "increments_per_stage": args.increments,
+            "clearance_increments": args.increments,
+            "n_cycles": args.cycles,
+        }.items()
+        if v is not None
+    }
+    option = {"amplitude_n": "--amplitude", "mu": "--mu", "n_cycles": "--cycles"}
+    try:
+        cycle = dataclasses.replace(spec.cycle, **overrides)
+    except ParameterError as err:  # name the option the user typed, not only the field
+        names = [o for f, o in option.items() if f in str(err)] or ["--increments"]
+        raise ParameterError(f"{names[0]}: {err}") from err
+    return dataclasses.replace(spec, cycle=cycle)
 
 
 def _progress_bar(args: argparse.Namespace) -> Any:

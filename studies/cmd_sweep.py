@@ -8,7 +8,7 @@ from pathlib import Path
 
 from cad.errors import ParameterError
 from fe.hinge.cycle import DEFAULT_MU
-from studies.cmd_mesh import add_mesh_arguments, settings_from_args
+from studies.args import add_mesh_arguments, settings_from_args
 from studies.pipeline import dumps
 from studies.sweep import SweepSettings, run_sweep
 
@@ -76,15 +76,19 @@ def run(args: argparse.Namespace) -> int:
         "ok": outcome.ok,
         "failed": outcome.failed,
         "skipped": outcome.skipped,
+        "cached": outcome.cached,
         "trace": str(outcome.db),
         "table": str(outcome.table),
         "wall_s": outcome.wall_s,
     }
     if args.json:
         print(dumps(summary))
+    elif outcome.ok + outcome.cached + outcome.skipped == 0:
+        print(f"no point succeeded ({outcome.failed} failed); see the errors above", file=sys.stderr)
     else:
         print(
-            f"{outcome.ok} points computed, {outcome.failed} failed, {outcome.skipped} already done "
+            f"{outcome.ok} points computed, {outcome.cached} read back from results/, "
+            f"{outcome.failed} failed, {outcome.skipped} already done "
             f"({outcome.wall_s:.0f} s). Trace: {outcome.db}"
         )
         print(

@@ -1,4 +1,4 @@
-"""Apply the validation workflow to the paper's published values (issue 5).
+"""Apply the validation workflow to the paper's published values.
 
 ``python -m studies.paper_validation --out DIR [--quick]`` takes the paper's numbers as
 they are printed (copies kept in ``validation/data/``): Table 1 (the paper's own FE loss
@@ -60,10 +60,10 @@ def _subset(data: Any, points: tuple[tuple[float, float], ...]) -> Any:
 
 def run(out: Path, quick: bool) -> dict[str, Any]:
     """Run the comparison and the two diagnoses; write and return the report."""
-    from studies.cmd_compare import compare_and_write
     from validation.compare import CompareSettings
     from validation.diagnose import diagnose
     from validation.measurements import read_eta_table
+    from validation.workflow import compare_and_write
 
     t0 = time.perf_counter()
     spec = _spec(quick)

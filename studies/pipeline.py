@@ -3,19 +3,13 @@
 from __future__ import annotations
 
 import json
-import time
-from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from cad.errors import ParameterError
 from cad.model import HingeModel
-from cad.step import write_step
-from mesh.build import MeshReport, mesh_hinge
-from mesh.hexmesh import HexMesh
-from mesh.io import write_msh, write_vtu
-from mesh.picture import write_mesh_png
-from mesh.settings import MeshSettings
+from fe.service.geometry import MeshedHinge, build_and_mesh
+
+__all__ = ["HINGES", "MeshedHinge", "build_and_mesh", "dumps", "make_model", "mesh_summary"]
 
 HINGES = ("general", "bearing")
 
@@ -48,49 +42,6 @@ def make_model(
         kwargs = {} if preload_n is None else {"preload_n": preload_n}
         return make_bearing_hinge(BearingHingeParams(**kwargs))
     raise ParameterError(f"hinge must be one of {HINGES}, got {hinge!r}")
-
-
-@dataclass(frozen=True)
-class MeshedHinge:
-    """A hinge built, meshed and written out.
-
-    Attributes:
-        model: The CAD model.
-        mesh: Its mesh.
-        report: Mesh quality figures.
-        files: Kind → path of what was written (step, msh, vtu, png).
-        timings_s: Step → wall time [s].
-    """
-
-    model: HingeModel
-    mesh: HexMesh
-    report: MeshReport
-    files: dict[str, Path]
-    timings_s: dict[str, float]
-
-
-def build_and_mesh(
-    model: HingeModel, settings: MeshSettings, out: Path, *, picture: bool = True
-) -> MeshedHinge:
-    """Mesh a model and write its STEP, .msh, .vtu and PNG files into ``out``."""
-    out.mkdir(parents=True, exist_ok=True)
-    t = time.perf_counter()
-    files = {"step": write_step(model, out / "hinge.step")}
-    t_step = time.perf_counter() - t
-    mesh, report = mesh_hinge(model, settings)
-    t = time.perf_counter()
-    files["msh"] = write_msh(mesh, out / "mesh.msh")
-    files["vtu"] = write_vtu(mesh, out / "mesh.vtu")
-    if picture:
-        title = f"{model.kind} hinge: {report.n_hex} hexes, {report.n_nodes} nodes"
-        files["png"] = write_mesh_png(mesh, out / "mesh.png", title=title)
-    return MeshedHinge(
-        model,
-        mesh,
-        report,
-        files,
-        {"step": t_step, "mesh": report.wall_s, "write": time.perf_counter() - t},
-    )
 
 
 def mesh_summary(m: MeshedHinge, total_wall_s: float) -> dict[str, Any]:

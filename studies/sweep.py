@@ -1,17 +1,23 @@
 """Design sweeps: every (clearance, amplitude) point of a grid, traced, resumable, on Dask.
 
-One *geometry task* per clearance meshes the hinge, factorises and condenses it once,
-then runs the cycle for every amplitude on it (amplitude and μ change nothing the
-factorisation depends on). Tasks run in-process (``workers=1``) or on a Dask
-``LocalCluster`` of worker processes. Only the driver writes the SQLite trace, as
-each geometry finishes, so an interrupted sweep keeps what it finished and a rerun
-skips every point the trace already holds as ``ok``. A point that fails is recorded
-with its error (and its partial loop when the solver gave one) and the sweep goes on.
+Points run through the model service (``fe.service``): each clearance is meshed,
+factorised and condensed once and every amplitude runs on it; each point's result is
+stored by its content key (``results/``) the moment it finishes and recorded in the
+trace right after, by the driver, one point at a time. So an interrupted sweep keeps
+every finished point, and a rerun of the same command computes only what is missing;
+a rerun with another μ, mesh, protocol or effect has other keys and recomputes (the
+trace keeps the earlier points; ``table.csv`` holds only this run's). Duplicate levels
+run once. A point that fails is recorded with its error (and its partial loop when the
+solver gave one) and the sweep goes on.
+
+With ``workers > 1`` the points run on a Dask ``LocalCluster`` of worker processes, all
+points of one clearance on the same worker (one preparation per clearance).
 
 Layout of ``out``::
 
-    trace.sqlite                    the trace (rsm.trace schema)
-    table.csv                       one row per ok point: point_id, parameters, results
+    trace.sqlite                    the trace (rsm.trace schema); solver_json holds the result key
+    table.csv                       one row per ok point of this run: point_id, parameters, results
+    results/KEY.npz                 each computed cycle, by result key (safe to delete: recomputed)
     geometry/c0.100/                hinge.step, mesh.msh, mesh.vtu, mesh.png
     cache/                          nodal compliances by mesh content hash (safe to delete)
     points/c0.100_F300/             loop.csv, loop.png, result.json
@@ -23,14 +29,13 @@ import logging
 import os
 import sqlite3
 import time
-import traceback
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 from cad.errors import ParameterError
-from fe.hinge.cycle import DEFAULT_MU
+from fe.hinge.protocol import DEFAULT_MU
 from mesh.settings import MeshSettings
 
 logger = logging.getLogger(__name__)
@@ -67,7 +72,28 @@ class SweepSettings:
                 f"and {self.amplitudes_n}"
             )
         if not 1 <= self.workers <= 64:
-            raise ParameterError(f"workers must be in [1, 64], got {self.workers}")
+            raise ParameterError(f"--workers must be in [1, 64], got {self.workers}")
+        self.spec()  # every parameter is checked now, before anything is meshed
+        self.points()
+
+    def spec(self) -> Any:
+        """The ``fe.service.ModelSpec`` of the sweep (the clearance is set per point)."""
+        from cad.general import GeneralHingeParams
+        from fe.hinge.protocol import CycleSettings
+        from fe.service import ModelSpec
+
+        cycle = CycleSettings(
+            mu=self.mu,
+            increments_per_stage=self.increments_per_stage,
+            clearance_increments=self.clearance_increments,
+        )
+        return ModelSpec("general", GeneralHingeParams(), self.mesh, cycle)
+
+    def points(self) -> list[Any]:
+        """The distinct design points, clearance-major."""
+        from fe.service import design_points
+
+        return design_points(self.clearances_mm, self.amplitudes_n)
 
 
 def point_key(clearance_mm: float, amplitude_n: float) -> str:
@@ -75,133 +101,99 @@ def point_key(clearance_mm: float, amplitude_n: float) -> str:
     return f"c{clearance_mm:.3f}_F{amplitude_n:g}"
 
 
-def run_geometry(
-    clearance_mm: float, amplitudes_n: tuple[float, ...], settings: SweepSettings, out: Path
-) -> list[dict[str, Any]]:
-    """Mesh one clearance, factorise once, run every amplitude; return one record per point.
+def geometry_folder(out: Path) -> Callable[[float], Path]:
+    """Where a sweep writes the files of the geometry with a given clearance."""
+    return lambda clearance: out / "geometry" / f"c{clearance:.3f}"
 
-    Runs in a worker process. Never raises: a failure becomes a ``failed`` record.
-    """
+
+def point_record(run: Any, settings: SweepSettings, out: Path) -> dict[str, Any]:
+    """Write a point's files (loop CSV/PNG, result.json) and return its trace record."""
     from fe.contact.newton import LU_THREADS
-    from fe.hinge.cycle import CycleSettings, run_cycle
     from fe.hinge.report import write_loop_csv, write_loop_png
-    from fe.hinge.system import build_system
-    from studies.pipeline import build_and_mesh, dumps, make_model
+    from studies.pipeline import dumps
 
-    records: list[dict[str, Any]] = []
-    base = {
-        "study": settings.study,
-        "solver": {
-            "mu": settings.mu,
-            "increments_per_stage": settings.increments_per_stage,
-            "mesh": asdict(settings.mesh),
-            "lu_threads": LU_THREADS,  # this worker's share of the cores (timings depend on it)
-        },
+    p = run.point
+    folder = out / "points" / point_key(p.clearance_mm, p.amplitude_n)
+    folder.mkdir(parents=True, exist_ok=True)
+    geo = out / "geometry" / f"c{p.clearance_mm:.3f}"
+    artifacts: dict[str, Any] = {
+        "step": geo / "hinge.step",
+        "mesh_msh": geo / "mesh.msh",
+        "mesh_vtu": geo / "mesh.vtu",
+        "mesh_png": geo / "mesh.png",
     }
-    try:
-        model = make_model("general", clearance_mm=clearance_mm)
-        meshed = build_and_mesh(model, settings.mesh, out / "geometry" / f"c{clearance_mm:.3f}")
-        system = build_system(meshed.mesh, cache_dir=out / "cache")
-        r = meshed.report
+    artifacts = {k: v for k, v in artifacts.items() if v.is_file()}
+    mesh_stats: dict[str, Any] = {}
+    if run.prepared is not None:
+        r = run.prepared.meshed.report
         mesh_stats = {
             "n_hex": r.n_hex,
             "n_nodes": r.n_nodes,
             "min_scaled_jacobian": r.min_scaled_jacobian,
             "hex_fraction": r.hex_fraction,
         }
-        geometry_files = {
-            "step": meshed.files["step"],
-            "mesh_msh": meshed.files["msh"],
-            "mesh_vtu": meshed.files["vtu"],
-            "mesh_png": meshed.files.get("png"),
-        }
-    except Exception as err:  # every point of this geometry fails, the sweep goes on
-        msg = f"geometry failed: {type(err).__name__}: {err}"
-        logger.error("clearance %.3f: %s", clearance_mm, msg)
-        return [
-            {
-                **base,
-                "params": {"clearance_mm": clearance_mm, "amplitude_N": a},
-                "status": "failed",
-                "error": msg,
-                "artifacts": {},
-                "mesh_stats": {},
-                "convergence": {},
-                "results": {},
-            }
-            for a in amplitudes_n
-        ]
-    configs = None
-    for amplitude in amplitudes_n:
-        folder = out / "points" / point_key(clearance_mm, amplitude)
-        folder.mkdir(parents=True, exist_ok=True)
-        rec: dict[str, Any] = {
-            **base,
-            "params": {"clearance_mm": clearance_mm, "amplitude_N": amplitude},
-            "mesh_stats": mesh_stats,
-            "artifacts": dict(geometry_files),
-        }
-        t0 = time.perf_counter()
-        try:
-            cyc = CycleSettings(
-                amplitude_n=amplitude,
-                mu=settings.mu,
-                increments_per_stage=settings.increments_per_stage,
-                clearance_increments=settings.clearance_increments,
-            )
-            result = run_cycle(system, clearance_mm, cyc, configs=configs)
-            configs = result.configs  # every amplitude reuses the condensed configurations
-            m = result.metrics()
-            rec["artifacts"]["loop_csv"] = write_loop_csv(result, folder / "loop.csv")
-            rec["artifacts"]["loop_png"] = write_loop_png(
-                result,
-                folder / "loop.png",
-                title=f"general hinge, Δr = {clearance_mm:g} mm, Fg = {amplitude:g} N, μ = {settings.mu:g}",
-            )
-            rec["results"] = {k: v for k, v in m.items() if isinstance(v, float)} | {
-                "wall_s": time.perf_counter() - t0
-            }
-            rec["convergence"] = {
-                "increments": len(result.increments),
-                "iterations": [i.iterations for i in result.increments],
-                "timings_s": result.timings_s,
-            }
-            rec["status"], rec["error"] = "ok", None
-        except Exception as err:
-            partial = getattr(err, "partial", None)
-            if partial is not None and partial.increments:
-                rec["artifacts"]["loop_csv"] = write_loop_csv(partial, folder / "loop_partial.csv")
-            rec["results"], rec["convergence"] = {}, {"traceback": traceback.format_exc(limit=3)}
-            rec["status"], rec["error"] = "failed", f"{type(err).__name__}: {err}"
-            logger.error("point %s failed: %s", point_key(clearance_mm, amplitude), rec["error"])
-        (folder / "result.json").write_text(
-            dumps({k: v for k, v in rec.items() if k != "artifacts"})
+    rec: dict[str, Any] = {
+        "study": settings.study,
+        "params": {"clearance_mm": p.clearance_mm, "amplitude_N": p.amplitude_n},
+        "solver": {
+            "result_key": run.key,
+            "mu": settings.mu,
+            "increments_per_stage": settings.increments_per_stage,
+            "clearance_increments": settings.clearance_increments,
+            "mesh": asdict(settings.mesh),
+            "lu_threads": LU_THREADS,  # this worker's share of the cores (timings depend on it)
+            "cached": run.cached,
+        },
+        "mesh_stats": mesh_stats,
+        "artifacts": artifacts,
+    }
+    if run.ok:
+        result = run.result
+        title = (
+            f"general hinge, Δr = {p.clearance_mm:g} mm, Fg = {p.amplitude_n:g} N, "
+            f"μ = {settings.mu:g}"
         )
-        records.append(rec)
-    return records
+        artifacts["loop_csv"] = write_loop_csv(result, folder / "loop.csv")
+        artifacts["loop_png"] = write_loop_png(result, folder / "loop.png", title=title)
+        rec["results"] = {k: v for k, v in result.metrics().items() if isinstance(v, float)} | {
+            "wall_s": run.wall_s
+        }
+        rec["convergence"] = {
+            "increments": len(result.increments),
+            "iterations": [i.iterations for i in result.increments],
+            "timings_s": result.timings_s,
+        }
+        rec["status"], rec["error"] = "ok", None
+    else:
+        if run.partial is not None and run.partial.increments:
+            artifacts["loop_csv"] = write_loop_csv(run.partial, folder / "loop_partial.csv")
+        rec["results"], rec["convergence"] = {}, {}
+        rec["status"], rec["error"] = "failed", run.error
+    (folder / "result.json").write_text(dumps({k: v for k, v in rec.items() if k != "artifacts"}))
+    return rec
 
 
-def done_points(db: Path, study: str) -> set[tuple[float, float]]:
-    """Return the (clearance, amplitude) pairs the trace holds as ``ok`` for a study."""
+def traced_keys(db: Path, study: str) -> dict[str, int]:
+    """Return result key → point id of the points the trace holds as ``ok`` for a study."""
+    import json
+
     if not db.exists():
-        return set()
+        return {}
     con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
     try:
         rows = con.execute(
-            "SELECT p.id, k.name, k.value FROM points p JOIN studies s ON p.study_id = s.id "
-            "JOIN params k ON k.point_id = p.id WHERE s.name = ? AND p.status = 'ok'",
+            "SELECT p.id, p.solver_json FROM points p JOIN studies s ON p.study_id = s.id "
+            "WHERE s.name = ? AND p.status = 'ok'",
             (study,),
         ).fetchall()
     finally:
         con.close()
-    by_point: dict[int, dict[str, float]] = {}
-    for pid, name, value in rows:
-        by_point.setdefault(pid, {})[name] = float(value)
-    return {
-        (round(v["clearance_mm"], 9), round(v["amplitude_N"], 9))
-        for v in by_point.values()
-        if "clearance_mm" in v and "amplitude_N" in v
-    }
+    out = {}
+    for pid, solver in rows:
+        key = json.loads(solver).get("result_key")
+        if key:
+            out[key] = pid
+    return out
 
 
 @dataclass(frozen=True)
@@ -211,10 +203,11 @@ class SweepOutcome:
     Attributes:
         ok: Points computed successfully in this run.
         failed: Points that failed in this run (recorded with their error).
-        skipped: Points already in the trace as ok (not recomputed).
+        skipped: Points already in the trace as ok with the same result key (not recomputed).
         db: The trace database.
-        table: The table of ok points (input of ``hingelab rsm fit``).
+        table: The table of this run's ok points (input of ``hingelab rsm fit``).
         wall_s: Wall time [s].
+        cached: Points read back from the result store (finished by an interrupted run).
     """
 
     ok: int
@@ -223,6 +216,7 @@ class SweepOutcome:
     db: Path
     table: Path
     wall_s: float
+    cached: int = 0
 
 
 def run_sweep(
@@ -236,26 +230,28 @@ def run_sweep(
         on_point: Called with each point's record as it is stored.
 
     Returns:
-        Counts of computed, failed and skipped points, and the trace and table paths.
+        Counts of computed, failed, skipped and cached points, and the trace and table paths.
     """
+    from fe.service import result_key
     from rsm import trace
 
     t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     db = out / "trace.sqlite"
     trace.create(db)
-    done = done_points(db, settings.study)
-    tasks = []
-    skipped = 0
-    for c in settings.clearances_mm:
-        todo = tuple(a for a in settings.amplitudes_n if (round(c, 9), round(a, 9)) not in done)
-        skipped += len(settings.amplitudes_n) - len(todo)
-        if todo:
-            tasks.append((c, todo))
-    counts = {"ok": 0, "failed": 0}
+    spec = settings.spec()
+    traced = traced_keys(db, settings.study)
+    todo, ids = [], []
+    for p in settings.points():
+        key = result_key(spec, p)
+        if key in traced:
+            ids.append(traced[key])
+        else:
+            todo.append(p)
+    counts = {"ok": 0, "failed": 0, "cached": 0}
 
-    def store(records: Iterable[dict[str, Any]]) -> None:
-        for rec in records:
+    def store(rec: dict[str, Any]) -> None:
+        ids.append(
             trace.record_point(
                 db,
                 study=rec["study"],
@@ -268,48 +264,94 @@ def run_sweep(
                 status=rec["status"],
                 error=rec["error"],
             )
-            counts[rec["status"]] += 1
-            if on_point is not None:
-                on_point(rec)
+        )
+        counts[rec["status"]] += 1
+        counts["cached"] += bool(rec["solver"].get("cached"))
+        if on_point is not None:
+            on_point(rec)
 
-    if settings.workers == 1 or len(tasks) <= 1:
-        for c, todo in tasks:
-            store(run_geometry(c, todo, settings, out))
+    n_geo = len({p.clearance_mm for p in todo})
+    if settings.workers == 1 or n_geo <= 1:
+        service = _service(out)
+        service.run(spec, todo, on_result=lambda run: store(point_record(run, settings, out)))
     else:
-        _run_on_dask(tasks, settings, out, store)
-    table = (
-        trace.export_table(db, out / "table.csv", study=settings.study)
-        if counts["ok"] + skipped
-        else out / "table.csv"
-    )
+        _run_on_dask(todo, settings, out, store)
+    skipped = len(ids) - counts["ok"] - counts["failed"]
+    table = out / "table.csv"
+    if counts["ok"] + skipped:  # this run's points only (failed ones are left out by status)
+        trace.export_table(db, table, study=settings.study, point_ids=ids)
     return SweepOutcome(
-        counts["ok"], counts["failed"], skipped, db, table, time.perf_counter() - t0
+        counts["ok"] - counts["cached"],
+        counts["failed"],
+        skipped,
+        db,
+        table,
+        time.perf_counter() - t0,
+        counts["cached"],
     )
+
+
+def _service(out: Path) -> Any:
+    from fe.service import ModelService, ResultStore
+
+    return ModelService(
+        store=ResultStore(out / "results"),
+        cache_dir=out / "cache",
+        geometry_dir=geometry_folder(out),
+        max_geometries=1,
+    )
+
+
+_WORKER_SERVICES: dict[str, Any] = {}
+
+
+def run_point_task(settings: SweepSettings, point: Any, out: Path) -> dict[str, Any]:
+    """Run one point in a worker process (its geometry reused across the worker's tasks)."""
+    service = _WORKER_SERVICES.setdefault(str(out), _service(out))
+    (run,) = service.run(settings.spec(), [point])
+    return point_record(run, settings, out)
 
 
 def _run_on_dask(
-    tasks: list[tuple[float, tuple[float, ...]]],
+    points: list[Any],
     settings: SweepSettings,
     out: Path,
-    store: Callable[[Iterable[dict[str, Any]]], None],
+    store: Callable[[dict[str, Any]], None],
 ) -> None:
-    """Run geometry tasks on a local Dask cluster, storing each as it completes."""
+    """Run points on a local Dask cluster, one clearance per worker, storing each as it completes."""
     from dask.distributed import Client, LocalCluster, as_completed
 
-    n = min(settings.workers, len(tasks))
+    clearances = list(dict.fromkeys(p.clearance_mm for p in points))
+    n = min(settings.workers, len(clearances))
     with (
         LocalCluster(
             n_workers=n,
             threads_per_worker=1,
             processes=True,
             dashboard_address=None,
+            silence_logs=logging.ERROR,
             # one worker per core: a worker's large LUs must not take a second thread
             env={"HINGELAB_LU_THREADS": str(max(1, (os.cpu_count() or 1) // n))},
         ) as cluster,
         Client(cluster) as client,
     ):
+        workers = sorted(client.scheduler_info()["workers"])
+        home = {c: workers[i % len(workers)] for i, c in enumerate(clearances)}
         futures = [
-            client.submit(run_geometry, c, todo, settings, out, pure=False) for c, todo in tasks
+            client.submit(
+                run_point_task,
+                settings,
+                p,
+                out,
+                pure=False,
+                workers=[home[p.clearance_mm]],
+                allow_other_workers=False,
+            )
+            for p in points
         ]
-        for future in as_completed(futures):
-            store(future.result())
+        try:
+            for future in as_completed(futures):
+                store(future.result())
+        except BaseException:
+            client.cancel(futures)
+            raise

@@ -178,12 +178,10 @@ def append_ledger(out: Path, rows: Sequence[LedgerRow]) -> list[dict[str, Any]]:
 
 def plot_ledger(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     """Draw error and held-out error per step (log scale) with the noise level; return path."""
-    import matplotlib
+    from matplotlib.figure import Figure  # no pyplot: no global state, no backend to choose
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
     x = range(len(rows))
     ax.semilogy(x, [r["error"] for r in rows], "o-", label="error (fitted cases)")
     ax.semilogy(x, [r["heldout_error"] for r in rows], "s--", label="held-out error")
@@ -194,5 +192,4 @@ def plot_ledger(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

@@ -68,7 +68,9 @@ class ModelEvaluator:
         if clearance_increments is not None:
             cycle = dataclasses.replace(cycle, clearance_increments=clearance_increments)
         self.cycle = cycle
-        self._systems: dict[float, tuple[Any, Any]] = {}
+        from fe.service import ModelService
+
+        self.service = ModelService()  # every clearance's geometry kept: fits revisit them
         self._loops: dict[tuple[Any, ...], tuple[FloatArray, FloatArray] | None] = {}
         self.n_cycles = 0
         self.cycle_s = 0.0
@@ -83,25 +85,6 @@ class ModelEvaluator:
         self.spec = spec
         self.cycle = dataclasses.replace(self.cycle, mu=spec.cycle.mu)
 
-    def _system(self, clearance: float) -> tuple[Any, Any]:
-        if clearance not in self._systems:
-            from cad.errors import ParameterError
-            from cad.general import GeneralHingeParams, make_general_hinge
-            from fe.hinge.cycle import configurations
-            from fe.hinge.system import build_system
-            from mesh.build import mesh_hinge
-            from validation.model_file import with_clearance
-
-            t0 = time.perf_counter()
-            hinge = with_clearance(self.spec, clearance)
-            if not isinstance(hinge, GeneralHingeParams):
-                raise ParameterError(f"diagnose needs a general hinge, got {type(hinge).__name__}")
-            mesh, _ = mesh_hinge(make_general_hinge(hinge), self.spec.mesh)
-            system = build_system(mesh)
-            self._systems[clearance] = (system, configurations(system, clearance))
-            self.setup_s += time.perf_counter() - t0
-        return self._systems[clearance]
-
     def _raw_loop(
         self, point: tuple[float, float], solve_effects: Effects, mu: float | None = None
     ) -> tuple[FloatArray, FloatArray] | None:
@@ -109,25 +92,28 @@ class ModelEvaluator:
         mu = self.cycle.mu if mu is None else float(mu)
         key = (point, _key(solve_effects), mu)
         if key not in self._loops:
-            from fe.effects import run_cycle_with_effects
+            from fe.service import DesignPoint
+            from validation.synth import machine_path
 
             clearance, amp = point
-            system, base = self._system(clearance)
-            settings = dataclasses.replace(self.cycle, amplitude_n=amp, mu=mu)
+            spec = dataclasses.replace(
+                self.spec,
+                cycle=dataclasses.replace(self.cycle, amplitude_n=amp, mu=mu),
+                effects=solve_effects,
+            )
             t0 = time.perf_counter()
+            setup0 = self.service.setup_s
             try:
-                res = run_cycle_with_effects(
-                    system, clearance, settings, solve_effects, configs=base
-                )
-                from validation.synth import machine_path
-
+                res = self.service.run_point(spec, DesignPoint(amp, clearance))
                 # the free play crossed at zero force, as the grips see it (no chord area)
-                self._loops[key] = machine_path(res.result)
+                self._loops[key] = machine_path(res)
             except HingelabError as err:  # a refused or non-converged effect value
                 logger.info("cycle failed at %s with %s: %s", point, dict(solve_effects), err)
                 self._loops[key] = None
+            setup = self.service.setup_s - setup0
+            self.setup_s += setup
             self.n_cycles += 1
-            self.cycle_s += time.perf_counter() - t0
+            self.cycle_s += time.perf_counter() - t0 - setup
         return self._loops[key]
 
     def features(self, effects: Effects, mu: float | None = None) -> FloatArray:

@@ -24,7 +24,6 @@ equal spec.
 
 from __future__ import annotations
 
-import dataclasses
 import enum
 import json
 import math
@@ -32,24 +31,25 @@ import tomllib
 import types
 import typing
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
-from cad.bearing import BearingHingeParams
 from cad.errors import DataError, ParameterError, check_range
-from cad.general import GeneralHingeParams
 from cad.materials import Material
-from fe.hinge.cycle import CycleSettings
+from fe.hinge.protocol import CycleSettings
+from fe.service.spec import HINGE_PARAMS, HingeParams, ModelSpec, with_clearance
 from mesh.settings import MeshSettings
 
-HingeParams = GeneralHingeParams | BearingHingeParams
-
-HINGE_PARAMS: dict[str, type[GeneralHingeParams] | type[BearingHingeParams]] = {
-    "general": GeneralHingeParams,
-    "bearing": BearingHingeParams,
-}
-"""Hinge kind → its parameter dataclass."""
+__all__ = [
+    "HINGE_PARAMS",
+    "NO_EFFECTS",
+    "HingeParams",
+    "ModelSpec",
+    "read_model",
+    "with_clearance",
+    "write_model",
+]
 
 
 class _Param(typing.Protocol):
@@ -81,42 +81,10 @@ def _ranges(registry: EffectRegistry) -> dict[str, Mapping[str, tuple[float, flo
 
 
 NO_EFFECTS: EffectRegistry = types.MappingProxyType({})
-"""The registry until the first physical effect is written (every [effects.*] is refused)."""
+"""A registry that refuses every [effects.*] section (for files that must have none)."""
 
 SECTIONS = ("hinge", "materials", "mesh", "friction", "cycle", "effects")
 _MATERIAL_SUFFIX = "_material"
-
-
-@dataclass(frozen=True)
-class ModelSpec:
-    """A complete hinge model.
-
-    Attributes:
-        kind: Hinge kind (``general`` or ``bearing``).
-        hinge: Geometry and materials.
-        mesh: Mesh settings.
-        cycle: Load protocol and solver options, including the friction coefficient μ.
-        effects: Enabled effect → its parameters (read-only mappings).
-    """
-
-    kind: str
-    hinge: HingeParams
-    mesh: MeshSettings = field(default_factory=MeshSettings)
-    cycle: CycleSettings = field(default_factory=CycleSettings)
-    effects: Mapping[str, Mapping[str, float]] = field(
-        default_factory=lambda: types.MappingProxyType({})
-    )
-
-    def __post_init__(self) -> None:
-        if self.kind not in HINGE_PARAMS:
-            raise ParameterError(f"kind must be one of {tuple(HINGE_PARAMS)}, got {self.kind!r}")
-        if not isinstance(self.hinge, HINGE_PARAMS[self.kind]):
-            raise ParameterError(
-                f"kind {self.kind!r} needs {HINGE_PARAMS[self.kind].__name__}, "
-                f"got {type(self.hinge).__name__}"
-            )
-        frozen = {k: types.MappingProxyType(dict(v)) for k, v in self.effects.items()}
-        object.__setattr__(self, "effects", types.MappingProxyType(frozen))
 
 
 def _where(path: Path, section: str) -> str:
@@ -240,13 +208,14 @@ def _read_effects(
     return out
 
 
-def read_model(path: Path | str, registry: EffectRegistry = NO_EFFECTS) -> ModelSpec:
+def read_model(path: Path | str, registry: EffectRegistry | None = None) -> ModelSpec:
     """Read and validate a MODEL.toml.
 
     Args:
         path: The file.
-        registry: Known effects and their parameter ranges (``fe.effects.REGISTRY`` or
-            effect → parameter → (lo, hi)).
+        registry: Known effects and their parameter ranges (effect → parameter → (lo, hi),
+            or objects with ``params``); None: ``fe.effects.REGISTRY``, every physical
+            effect the solver knows (what ``hingelab calibrate`` writes).
 
     Returns:
         The model.
@@ -256,6 +225,10 @@ def read_model(path: Path | str, registry: EffectRegistry = NO_EFFECTS) -> Model
         ParameterError: Unknown section or key (the allowed ones listed), wrong type,
             or a value outside its range (named with the file and section).
     """
+    if registry is None:
+        from fe.effects import REGISTRY
+
+        registry = REGISTRY
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: model file not found")
@@ -351,14 +324,3 @@ def write_model(spec: ModelSpec, path: Path | str) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(out) + "\n", encoding="utf-8")
     return path
-
-
-def with_clearance(spec: ModelSpec, clearance_mm: float) -> HingeParams:
-    """Return the spec's hinge parameters at another radial clearance (general hinge).
-
-    Raises:
-        ParameterError: For a hinge kind without clearance, or an out-of-range value.
-    """
-    if not isinstance(spec.hinge, GeneralHingeParams):
-        raise ParameterError(f"the {spec.kind} hinge has no clearance_mm")
-    return dataclasses.replace(spec.hinge, clearance_mm=clearance_mm)

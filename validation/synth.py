@@ -279,54 +279,51 @@ def synthesize(
     Raises:
         ParameterError: A bad effect, a non-general hinge, or an effect refused at a case.
     """
-    from cad.general import GeneralHingeParams, make_general_hinge
-    from fe.effects import run_cycle_with_effects, validate_effects
-    from fe.hinge.cycle import configurations
-    from fe.hinge.system import build_system
-    from mesh.build import mesh_hinge
-    from validation.model_file import with_clearance
+    from fe.effects import validate_effects
+    from fe.service import DesignPoint, ModelService
 
     if spec.kind != "general":
         raise ParameterError(f"synth supports hinge kind 'general' only, got {spec.kind!r}")
     truth = validate_effects({**spec.effects, **hidden})
     mesh_settings = finer_mesh(spec.mesh)
     n_inc = spec.cycle.increments_per_stage * SYNTH_INCREMENT_FACTOR
+    data_spec = dataclasses.replace(
+        spec,
+        mesh=mesh_settings,
+        cycle=dataclasses.replace(
+            spec.cycle,
+            increments_per_stage=n_inc,
+            clearance_increments=SYNTH_INCREMENT_FACTOR * spec.cycle.clearance_increments,
+        ),
+        effects=truth,
+    )
     t0 = time.perf_counter()
     rows = ["case_id,hinge,clearance_mm,preload_N,amplitude_N,loop_file,temperature_C"]
     records: list[dict[str, Any]] = []
     index = {c.case_id: i for i, c in enumerate(cases)}
-    for clearance in sorted({c.clearance_mm for c in cases}):
-        hinge = with_clearance(spec, clearance)
-        if not isinstance(hinge, GeneralHingeParams):  # kind checked above; for the type checker
-            raise ParameterError(f"synth needs a general hinge, got {type(hinge).__name__}")
-        mesh, _ = mesh_hinge(make_general_hinge(hinge), mesh_settings)
-        system = build_system(mesh)
-        base = configurations(system, clearance)
-        for case in (c for c in cases if c.clearance_mm == clearance):
-            cycle = dataclasses.replace(
-                spec.cycle,
-                amplitude_n=case.amplitude_n,
-                increments_per_stage=n_inc,
-                clearance_increments=SYNTH_INCREMENT_FACTOR * spec.cycle.clearance_increments,
-            )
-            result = run_cycle_with_effects(system, clearance, cycle, truth, configs=base)
-            F, d = machine_path(result.result)
-            m = measure(F, d, settings, index[case.case_id])
-            loop_file = f"loops/{case.case_id}.csv"
-            write_loop_csv(out / loop_file, m)
-            metrics = result.metrics()
-            records.append(
-                {
-                    **dataclasses.asdict(case),
-                    "loop_file": loop_file,
-                    "n_samples": int(m.time_s.size),
-                    "duration_s": float(m.time_s[-1]),
-                    "force_offset_N": m.force_offset_n,
-                    "disp_offset_mm": m.disp_offset_mm,
-                    "n_contact_points": len(base[1].geo.slave),
-                    "fe_metrics": {k: float(v) for k, v in metrics.items()},
-                }
-            )
+    service = ModelService()
+    ordered = sorted(cases, key=lambda c: c.clearance_mm)
+    for case in ordered:
+        result = service.run_point(data_spec, DesignPoint(case.amplitude_n, case.clearance_mm))
+        prepared = service.prepare(data_spec, case.clearance_mm)
+        F, d = machine_path(result)
+        m = measure(F, d, settings, index[case.case_id])
+        loop_file = f"loops/{case.case_id}.csv"
+        write_loop_csv(out / loop_file, m)
+        metrics = result.metrics()
+        configs = prepared.effect_configs or next(iter(prepared.configs.values()))
+        records.append(
+            {
+                **dataclasses.asdict(case),
+                "loop_file": loop_file,
+                "n_samples": int(m.time_s.size),
+                "duration_s": float(m.time_s[-1]),
+                "force_offset_N": m.force_offset_n,
+                "disp_offset_mm": m.disp_offset_mm,
+                "n_contact_points": len(configs[1].geo.slave),
+                "fe_metrics": {k: float(v) for k, v in metrics.items()},
+            }
+        )
     for c in cases:  # cases.csv in the order given
         rows.append(
             f"{c.case_id},general,{c.clearance_mm:g},0,{c.amplitude_n:g},loops/{c.case_id}.csv,21"

@@ -56,7 +56,7 @@ from fe.effects.models import (
 )
 from fe.hinge.cycle import CycleResult, CycleSettings, Increment, configurations, run_cycle
 from fe.hinge.faces import unloaded_state
-from fe.hinge.system import Condensed, HingeSystem
+from fe.hinge.system import GRIP, Condensed, HingeSystem
 
 __all__ = [
     "REGISTRY",
@@ -202,7 +202,7 @@ def prestressed_zero(cond: Condensed, settings: CycleSettings) -> float:
     increment from the unloaded open state to F = 0 (``fe.hinge.faces.unloaded_state``),
     for any points with an overlap: pin–hole (interference) or clamped faces.
     """
-    return float(unloaded_state(cond, EffectContext.contact_of(settings)).alpha[6])
+    return float(unloaded_state(cond, EffectContext.contact_of(settings)).alpha[GRIP])
 
 
 def _post_increments(

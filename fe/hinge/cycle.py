@@ -32,12 +32,21 @@ import numpy as np
 import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
-from cad.errors import ConvergenceError, check_range
+from cad.errors import ConvergenceError, ParameterError, check_range
 from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
 from fe.hinge.geometry import contact_geometry, split_window
 from fe.hinge.protocol import DEFAULT_MU, CycleSettings, stage_targets
 from fe.hinge.result import CycleResult, Increment
-from fe.hinge.system import Condensed, HingeSystem, condense, displacements, outside_gaps
+from fe.hinge.system import (
+    GRIP,
+    N_RIGID,
+    Condensed,
+    HingeSystem,
+    condense,
+    displacements,
+    is_tang_side,
+    outside_gaps,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -63,7 +72,7 @@ def configurations(
         # Tension: the pin is pushed +Δr against the tang's hole and the clevis a further +Δr,
         # so relative to each hole the pin sits +Δr (tang) or −Δr (clevis) along x.
         shift = {
-            p.name: (side * clearance_mm * ex if "tang" in p.master else -side * clearance_mm * ex)
+            p.name: (side if is_tang_side(p) else -side) * clearance_mm * ex
             for p in system.mesh.pairs
         }
         geo = contact_geometry(system.mesh, shift)
@@ -100,6 +109,11 @@ def run_cycle(
             ``partial`` is the CycleResult of the increments that converged.
     """
     check_range("clearance_mm", clearance_mm, 0.0, 10.0)
+    if abs(clearance_mm - system.clearance_mm) > 1e-9:
+        raise ParameterError(
+            f"clearance_mm = {clearance_mm:g} does not match the mesh's exact cylinders "
+            f"(hole − pin radius = {system.clearance_mm:g} mm): pass system.clearance_mm"
+        )
     if clearance_mm > 0.0:
         settings = dataclasses.replace(settings, increments_per_stage=settings.clearance_increments)
     t0 = time.perf_counter()
@@ -127,7 +141,7 @@ def _run(
     state = (
         seed_state(cond, stage_targets(*first, settings.grading)[0])
         if clearance_mm > 0
-        else ContactState.initial(len(cond.geo.slave), 7, w=cond.w0)
+        else ContactState.initial(len(cond.geo.slave), N_RIGID, w=cond.w0)
     )
     incs: list[Increment] = []
     states: list[ContactState] = []
@@ -242,7 +256,7 @@ def seed_state(cond: Condensed, force_n: float) -> ContactState:
     where Newton starts, not what it converges to.
     """
     m = len(cond.geo.slave)
-    state0 = ContactState.initial(m, 7, w=cond.w0)
+    state0 = ContactState.initial(m, N_RIGID, w=cond.w0)
     touching = np.flatnonzero(cond.geo.g0 <= SEED_GAP_MM)
     if touching.size == 0:
         return state0
@@ -250,7 +264,7 @@ def seed_state(cond: Condensed, force_n: float) -> ContactState:
     k = cond.G.shape[1]
     A = np.block([[cond.W[np.ix_(rows, rows)], cond.G[rows]], [cond.G[rows].T, np.zeros((k, k))]])
     e = np.zeros(k)
-    e[6] = -force_n
+    e[GRIP] = -force_n
     b = np.concatenate([-cond.geo.g0[touching], e])
     x = np.linalg.lstsq(A, b, rcond=1e-12)[0]
     p = np.zeros((m, 3))
@@ -295,8 +309,8 @@ def _advance(
             iters = 0
             for k in range(1, n_sub + 1):
                 f = f_from + (f_to - f_from) * k / n_sub
-                e = np.zeros(7)
-                e[6] = -f  # clevis equilibrium: G_δᵀ p = −F
+                e = np.zeros(N_RIGID)
+                e[GRIP] = -f  # clevis equilibrium: G_δᵀ p = −F
                 start = None
                 if previous is not None and k == 1 and previous[0] != f_from:
                     t = (f - f_from) / (f_from - previous[0])
@@ -342,7 +356,7 @@ def _record(
     return Increment(
         stage=stage,
         force_n=force,
-        disp_mm=float(res.state.alpha[6]),
+        disp_mm=float(res.state.alpha[GRIP]),
         side=side,
         iterations=res.iterations,
         n_open=res.n_open,

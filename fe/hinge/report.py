@@ -32,14 +32,12 @@ def write_loop_csv(result: CycleResult, path: Path, *, with_free_play: bool = Fa
 
 def write_loop_png(result: CycleResult, path: Path, *, title: str = "") -> Path:
     """Plot the loop with the free play removed (left) and, if there is any, with it (right)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: no global state, no backend to choose
 
     m = result.metrics()
     play = result.free_play_mm > 0
-    fig, axes = plt.subplots(1, 2 if play else 1, figsize=(13 if play else 7.5, 5.5), squeeze=False)
+    fig = Figure(figsize=(13 if play else 7.5, 5.5))
+    axes = fig.subplots(1, 2 if play else 1, squeeze=False)
     ax = axes[0, 0]
     F, d, stage = result.loop_arrays()
     names = ["0 → +Fg (initial)"] + [
@@ -83,7 +81,6 @@ def write_loop_png(result: CycleResult, path: Path, *, title: str = "") -> Path:
         ax2.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
-    plt.close(fig)
     return path
 
 

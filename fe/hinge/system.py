@@ -47,6 +47,8 @@ import numpy.typing as npt
 import scipy.sparse as sp
 
 from cad.errors import MeshQualityError
+from cad.model import PairKind, SurfacePair
+from cad.surfaces import Cylinder
 from fe.assembly import Factorization, assemble_stiffness, dofs_of, inverse_block
 from fe.element import ElementType
 from fe.hinge.geometry import ContactGeometry, contact_operator
@@ -56,6 +58,15 @@ logger = logging.getLogger(__name__)
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+
+N_PIN_MODES = 6
+"""Rigid-body modes of the floating pin: translations x, y, z, then rotations about x, y, z."""
+
+GRIP = 6
+"""Index of the grip displacement δ [mm] among the rigid amplitudes α (after the pin modes)."""
+
+N_RIGID = N_PIN_MODES + 1
+"""Rigid amplitudes of the hinge's condensed problem: the pin's six modes and the grip."""
 
 BLOCK_RHS = 128
 """Right-hand sides per block solve when condensing (see benchmarks/bench_assembly.py)."""
@@ -78,6 +89,15 @@ def outside_gaps(cond: Condensed, u: FloatArray) -> FloatArray:
         return np.zeros(0)
     w = cond.C_outside @ np.ravel(u)
     return np.asarray(cond.outside.g0 + w[0::3])
+
+
+TANG = "tang"
+"""Name of the fixed lug part (its hole is the master surface of the tang-side pair)."""
+
+
+def is_tang_side(pair: SurfacePair) -> bool:
+    """True for the pin–tang contact pair (its master face belongs to the tang)."""
+    return pair.master.startswith(TANG)
 
 
 def rigid_modes(nodes: FloatArray, centre: FloatArray) -> FloatArray:
@@ -235,6 +255,25 @@ class HingeSystem:
     kind: ElementType = ElementType.INCOMPATIBLE
 
     @property
+    def clearance_mm(self) -> float:
+        """Radial clearance Δr: hole minus pin radius of the exact contact cylinders [mm].
+
+        Raises:
+            MeshQualityError: If a contact pair is not two cylinders, or the pairs disagree.
+        """
+        values = set()
+        for p in self.mesh.pairs:
+            if p.kind is not PairKind.CONTACT:
+                continue
+            pin, hole = self.mesh.surfaces.get(p.slave), self.mesh.surfaces.get(p.master)
+            if not (isinstance(pin, Cylinder) and isinstance(hole, Cylinder)):
+                raise MeshQualityError(f"contact pair {p.name!r} is not pin and hole cylinders")
+            values.add(round(hole.radius_mm - pin.radius_mm, 12) + 0.0)
+        if len(values) != 1:
+            raise MeshQualityError(f"the contact pairs give different clearances: {sorted(values)}")
+        return values.pop()
+
+    @property
     def n_dof(self) -> int:
         """Number of DOFs of the whole mesh."""
         return 3 * self.mesh.n_nodes
@@ -277,12 +316,12 @@ def build_system(
     support = np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * c + 1], dtype=np.int64)
     pin_free = np.setdiff1d(dofs_of(pin_nodes), support)
     centre = x.mean(axis=0)
-    R = np.zeros((n_dof, 6))
+    R = np.zeros((n_dof, N_PIN_MODES))
     R[dofs_of(pin_nodes)] = rigid_modes(x, centre)
     u_grip = np.zeros(n_dof)
     u_grip[3 * mesh.part_nodes("clevis")] = 1.0
     logger.info("assembled %d DOF in %.2f s", n_dof, t_asm)
-    contact_pairs = [p for p in mesh.pairs if p.kind.value == "contact"]
+    contact_pairs = [p for p in mesh.pairs if p.kind is PairKind.CONTACT]
     slave_nodes = np.unique(np.concatenate([mesh.set_nodes(p.slave) for p in contact_pairs]))
     master_nodes = np.unique(np.concatenate([mesh.set_nodes(p.master) for p in contact_pairs]))
     return HingeSystem(
@@ -419,7 +458,7 @@ def displacements(
     f = np.column_stack([cond.C.T @ np.ravel(p) for cond, p, _ in states])
     u = system.solve_parts(f)  # (n_dof, k)
     rigid = np.column_stack([np.asarray(a, dtype=np.float64) for _, _, a in states])  # (7, k)
-    u += system.pin_R @ rigid[:6] + np.outer(system.u_grip, rigid[6])
+    u += system.pin_R @ rigid[:N_PIN_MODES] + np.outer(system.u_grip, rigid[GRIP])
     return [u[:, j].reshape(-1, 3) for j in range(len(states))]
 
 

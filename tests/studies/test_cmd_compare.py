@@ -47,8 +47,8 @@ def _measured(F, d, n, rng):
 def dataset(tmp_path_factory):
     """Model file + 3 measured cases: the model at 400 N, scaled (the zero-clearance model is
     positively homogeneous: F and δ scale together), resampled, noised; c300_bad has δ × 1.3."""
-    from studies.cmd_compare import run_model_for_cases
     from validation.measurements import Case
+    from validation.workflow import run_model_for_cases
 
     root = tmp_path_factory.mktemp("compare")
     spec, model_path = _model_file(root / "MODEL.toml")
@@ -209,8 +209,8 @@ def test_compare_runs_the_models_effects(tmp_path):
     """A calibrated model file holds effects: compare must run them, not the bare model."""
     import dataclasses
 
-    from studies.cmd_compare import run_model_for_cases
     from validation.measurements import Case
+    from validation.workflow import run_model_for_cases
 
     spec, _ = _model_file(tmp_path / "MODEL.toml")
     c_f = 2e-5  # mm/N
@@ -227,9 +227,9 @@ def test_compare_runs_the_models_effects(tmp_path):
 
 def test_eta_only_case_is_compared_without_the_free_play(tmp_path):
     """A stated η (the paper's tables, `hingelab cycle`) excludes the free play 4Δr."""
-    from studies.cmd_compare import run_model_for_cases
     from validation.compare import compare
     from validation.measurements import Case, MeasurementSet
+    from validation.workflow import run_model_for_cases
 
     spec, _ = _model_file(tmp_path / "MODEL.toml")
     case = Case("e", "general", 0.1, 0.0, 400.0, eta=0.05)

@@ -61,11 +61,12 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (["--amplitude", "-1"], "amplitude_n"),
-        (["--mu", "-0.3"], "mu"),
-        (["--hinge", "bearing"], "general only"),
+        (["--amplitude", "-1"], "--amplitude: amplitude_n"),
+        (["--mu", "-0.3"], "--mu: mu"),
+        (["--hinge", "bearing"], "--hinge general only"),
+        (["--preload", "50"], "--preload applies to the bearing hinge only"),
     ],
-    ids=["negative-amplitude", "negative-mu", "bearing-not-yet"],
+    ids=["negative-amplitude", "negative-mu", "bearing-not-yet", "preload-on-general"],
 )
 def test_cycle_bad_input(tmp_path, capsys, argv, needle):
     assert main(["cycle", *argv, "--out", str(tmp_path), "--no-progress"]) == 1

@@ -67,7 +67,7 @@ def stubs(monkeypatch):
 
     import types
 
-    import studies.cmd_compare
+    import validation.workflow
 
     compared = []
 
@@ -76,7 +76,7 @@ def stubs(monkeypatch):
         case = types.SimpleNamespace(case=types.SimpleNamespace(case_id="c1"), passed=True)
         return types.SimpleNamespace(summary={"n_pass": 1, "n_cases": 1}, cases=[case]), {}
 
-    monkeypatch.setattr(studies.cmd_compare, "compare_and_write", fake_compare_and_write)
+    monkeypatch.setattr(validation.workflow, "compare_and_write", fake_compare_and_write)
     return compared
 
 

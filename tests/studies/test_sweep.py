@@ -22,15 +22,27 @@ def rows(path):
         return list(csv.DictReader(fh))
 
 
-def test_sweep_records_failures_goes_on_and_resumes(tmp_path):
+def test_sweep_records_failures_goes_on_and_resumes(tmp_path, monkeypatch):
+    from cad.errors import ConvergenceError
+    from fe.service.runner import ModelService
+
     settings = SweepSettings(
         clearances_mm=(0.0,),
-        amplitudes_n=(100.0, -5.0, 400.0),
+        amplitudes_n=(100.0, 250.0, 400.0),
         mesh=COARSE,
         increments_per_stage=6,
         clearance_increments=6,
     )
+    real = ModelService._compute
+
+    def flaky(self, spec, point, prepared, progress):
+        if point.amplitude_n == 250.0:
+            raise ConvergenceError("amplitude_n 250 refused by the test", increment=3, iteration=60, residual=1e-3)
+        return real(self, spec, point, prepared, progress)
+
+    monkeypatch.setattr(ModelService, "_compute", flaky)
     first = run_sweep(settings, tmp_path)
+    monkeypatch.setattr(ModelService, "_compute", real)
     assert (first.ok, first.failed, first.skipped) == (2, 1, 0)
     table = rows(first.table)
     assert sorted(float(r["amplitude_N"]) for r in table) == [100.0, 400.0]
@@ -47,7 +59,7 @@ def test_sweep_records_failures_goes_on_and_resumes(tmp_path):
     assert {"step", "mesh_msh", "mesh_png", "loop_csv", "loop_png"} <= kinds
 
     again = run_sweep(settings, tmp_path)
-    assert (again.ok, again.failed, again.skipped) == (0, 1, 2)  # only the failed point is retried
+    assert (again.ok, again.failed, again.skipped) == (1, 0, 2)  # only the failed point is retried
 
 
 def test_sweep_on_dask_workers(tmp_path):
@@ -75,3 +87,8 @@ def test_bad_sweep_settings():
         SweepSettings(workers=0)
     with pytest.raises(ParameterError, match="at least one clearance"):
         SweepSettings(clearances_mm=())
+    # every parameter is checked before anything is meshed
+    with pytest.raises(ParameterError, match="amplitude_n"):
+        SweepSettings(amplitudes_n=(100.0, -5.0))
+    with pytest.raises(ParameterError, match="mu"):
+        SweepSettings(mu=-0.1)

@@ -202,9 +202,9 @@ def test_eta_judged_without_free_play_is_the_cycles_reported_eta(spec, tmp_path)
     evaluator = ModelEvaluator(spec, [point])
     features = evaluator.features({})
     judged = float(_eta_without_free_play(features, meas)[0])
-    system, base = evaluator._system(point[0])
+    system = evaluator.service.prepare(spec, point[0]).system
     settings = dataclasses.replace(evaluator.cycle, amplitude_n=point[1])
-    reported = run_cycle_with_effects(system, point[0], settings, {}, base).metrics()["eta"]
+    reported = run_cycle_with_effects(system, point[0], settings, {}).metrics()["eta"]
     # same loop, same δ; they differ only by how the loop is closed (chord vs last state)
     assert judged == pytest.approx(reported, rel=0.01)
     with_play = float(derived(features, meas.amplitudes)[1][0])

@@ -186,10 +186,18 @@ def test_refusals_name_the_key(tmp_path, text, error, match):
         read_model(write(tmp_path, text), REGISTRY)
 
 
-def test_effects_refused_with_empty_registry(tmp_path):
-    path = write(tmp_path, '[hinge]\nkind = "general"\n[effects.interference]\ndelta_mm = 0.01\n')
+def test_default_registry_is_the_solvers(tmp_path):
+    """Without a registry argument every effect the solver knows is accepted (what calibrate
+    writes must read back in compare); NO_EFFECTS still refuses them all."""
+    from validation.model_file import NO_EFFECTS
+
+    ok = write(tmp_path, '[hinge]\nkind = "general"\n[effects.frame_compliance]\ncompliance_mm_per_n = 2e-5\n')
+    assert dict(read_model(ok).effects) == {"frame_compliance": {"compliance_mm_per_n": 2e-5}}
     with pytest.raises(ParameterError, match=r"known effects: \(none yet\)"):
-        read_model(path)
+        read_model(ok, NO_EFFECTS)
+    bad = write(tmp_path, '[hinge]\nkind = "general"\n[effects.interference]\ndelta_mm = 0.01\n')
+    with pytest.raises(ParameterError, match=r"unknown key\(s\) \['delta_mm'\]; allowed: interference_mm"):
+        read_model(bad)
 
 
 def test_missing_file_and_minimal_file(tmp_path):

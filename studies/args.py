@@ -1,0 +1,57 @@
+"""Command-line options shared by several subcommands (geometry, mesh size)."""
+
+from __future__ import annotations
+
+import argparse
+
+from mesh.settings import MeshSettings
+from studies.pipeline import HINGES
+
+
+def add_geometry_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the options that choose a hinge and its mesh (shared with ``cycle``)."""
+    p.add_argument(
+        "--hinge", choices=HINGES, default="general", help="hinge kind (default: general)"
+    )
+    p.add_argument(
+        "--clearance",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="radial pin-hole clearance of the general hinge [mm] (default 0)",
+    )
+    p.add_argument(
+        "--preload",
+        type=float,
+        default=None,
+        metavar="N",
+        help="axial bearing preload of the bearing hinge [N] (default 0)",
+    )
+    add_mesh_arguments(p)
+
+
+def add_mesh_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the mesh-size options (shared with ``cycle`` and ``sweep``)."""
+    p.add_argument(
+        "--refinement", type=int, default=0, metavar="K", help="mesh level; each halves sizes (0-4)"
+    )
+    p.add_argument(
+        "--size", type=float, default=None, metavar="MM", help="global element size at level 0 [mm]"
+    )
+    p.add_argument(
+        "--contact-size",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="master contact-surface element size at level 0 [mm]",
+    )
+
+
+def settings_from_args(args: argparse.Namespace) -> MeshSettings:
+    """Return mesh settings from the parsed options."""
+    kw: dict[str, float | int] = {"refinement": args.refinement}
+    if args.size is not None:
+        kw["size_mm"] = args.size
+    if args.contact_size is not None:
+        kw["contact_size_mm"] = args.contact_size
+    return MeshSettings.for_hinge(args.hinge, **kw)

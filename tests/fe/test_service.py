@@ -1,0 +1,91 @@
+"""The model service: content keys, the atomic result store, one preparation per geometry."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from cad.errors import ParameterError
+from cad.general import GeneralHingeParams
+from fe.hinge.protocol import CycleSettings
+from fe.service import DesignPoint, ModelService, ModelSpec, ResultStore, result_key
+from mesh.settings import MeshSettings
+
+pytest.importorskip("gmsh")
+
+
+def _spec(**cycle):
+    return ModelSpec(
+        "general",
+        GeneralHingeParams(),
+        MeshSettings.coarse(),
+        CycleSettings(**{"increments_per_stage": 6, "clearance_increments": 6, **cycle}),
+    )
+
+
+def test_result_key_changes_with_every_input_and_only_then():
+    spec, p = _spec(), DesignPoint(300.0, 0.0)
+    key = result_key(spec, p)
+    assert result_key(_spec(), DesignPoint(300, -0.0)) == key  # same point, other spelling
+    changed = [
+        result_key(_spec(mu=0.1), p),
+        result_key(_spec(increments_per_stage=8), p),
+        result_key(dataclasses.replace(spec, mesh=MeshSettings.coarse(refinement=1)), p),
+        result_key(dataclasses.replace(spec, effects={"frame_compliance": {"compliance_mm_per_n": 1e-5}}), p),
+        result_key(spec, DesignPoint(301.0, 0.0)),
+        result_key(spec, DesignPoint(300.0, 0.1)),
+    ]
+    assert len({key, *changed}) == len(changed) + 1
+
+
+def test_store_round_trip_and_one_preparation_per_geometry(tmp_path):
+    store = ResultStore(tmp_path / "results")
+    service = ModelService(store=store)
+    spec = _spec()
+    runs = service.run(spec, [DesignPoint(200.0), DesignPoint(400.0), DesignPoint(200.0)])
+    assert [r.point.amplitude_n for r in runs] == [200.0, 400.0]  # the duplicate ran once
+    assert service.n_computed == 2
+    assert len(service._prepared) == 1  # one mesh + factorisation for both amplitudes
+    again = ModelService(store=store).run(spec, [DesignPoint(400.0)])[0]
+    assert again.cached
+    fresh = runs[1].result.metrics()
+    for k, v in again.result.metrics().items():
+        assert v == pytest.approx(fresh[k], rel=1e-15, nan_ok=True), k
+    np.testing.assert_array_equal(again.result.states[-1].p, runs[1].result.states[-1].p)
+    # a half-written file (a temporary that never got renamed) is not a result
+    (tmp_path / "results" / ".abc-partial.npz").write_bytes(b"PK\x03")
+    assert store.get("abc") is None
+
+
+def test_a_failing_point_is_recorded_and_the_others_go_on(tmp_path, monkeypatch):
+    from cad.errors import ConvergenceError
+
+    service = ModelService()
+    real = ModelService._compute
+
+    def flaky(self, spec, point, prepared, progress):
+        if point.amplitude_n == 300.0:
+            raise ConvergenceError("refused", increment=2, iteration=60, residual=1e-3)
+        return real(self, spec, point, prepared, progress)
+
+    monkeypatch.setattr(ModelService, "_compute", flaky)
+    runs = service.run(_spec(), [DesignPoint(300.0), DesignPoint(100.0)])
+    assert [r.ok for r in runs] == [False, True]
+    assert "increment 2, iteration 60" in runs[0].error
+
+
+def test_run_cycle_refuses_a_clearance_the_mesh_does_not_have():
+    from fe.hinge.cycle import run_cycle
+
+    service = ModelService()
+    prepared = service.prepare(_spec(), 0.1)
+    assert prepared.clearance_mm == pytest.approx(0.1, abs=1e-12)
+    with pytest.raises(ParameterError, match="does not match the mesh"):
+        run_cycle(prepared.system, 0.2, CycleSettings())
+
+
+def test_design_point_range_is_checked():
+    with pytest.raises(ParameterError, match="amplitude_n"):
+        DesignPoint(-5.0)
