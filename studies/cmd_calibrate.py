@@ -50,14 +50,13 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab calibrate``."""
-    from fe.effects import REGISTRY
     from validation.calibrate import append_ledger, calibrate, plot_ledger
     from validation.diagnose import DiagnoseSettings
     from validation.features import FeatureSettings
     from validation.measurements import read_measurement_set
     from validation.model_file import read_model, write_model
 
-    spec = read_model(args.model, REGISTRY)
+    spec = read_model(args.model)
     data = read_measurement_set(args.data)
     names = [n.strip() for n in args.effects.split(",") if n.strip()]
     if not names and not args.mu:

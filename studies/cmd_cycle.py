@@ -180,7 +180,7 @@ def _progress_bar(args: argparse.Namespace) -> Any:
         return None
     from tqdm import tqdm
 
-    class Bar(tqdm):  # type: ignore[type-arg]
+    class Bar(tqdm):  # type: ignore[misc]  # tqdm ships no type hints
         def update_to(self, done: int, total: int) -> None:
             self.total = total
             self.update(done - self.n)

@@ -38,13 +38,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab diagnose``."""
-    from fe.effects import REGISTRY
     from validation.diagnose import DiagnoseSettings, diagnose
     from validation.features import FeatureSettings
     from validation.measurements import read_measurement_set
     from validation.model_file import read_model
 
-    spec = read_model(args.model, REGISTRY)
+    spec = read_model(args.model)
     data = read_measurement_set(args.data)
     settings = DiagnoseSettings(
         features=FeatureSettings(rel_floor=args.model_error),

@@ -215,6 +215,6 @@ def run_paper(args: argparse.Namespace) -> int:
     else:
         print(files.markdown.read_text(encoding="utf-8"))
         print(f"report: {files.markdown} and {files.json}")
-        for k, v in plots.items():
-            print(f"plot {k}: {v}")
+        for k, path in plots.items():
+            print(f"plot {k}: {path}")
     return 0

@@ -67,9 +67,9 @@ def run(args: argparse.Namespace) -> int:
     def report(rec: dict[str, object]) -> None:
         if not args.json:
             p = rec["params"]
-            eta = rec["results"].get("eta") if isinstance(rec["results"], dict) else None  # type: ignore[union-attr]
+            eta = rec["results"].get("eta") if isinstance(rec["results"], dict) else None
             what = f"η = {eta:.5f}" if rec["status"] == "ok" else f"FAILED: {rec['error']}"
-            print(f"  {p}: {what}", file=sys.stderr)  # type: ignore[index]
+            print(f"  {p}: {what}", file=sys.stderr)
 
     outcome = run_sweep(settings, args.out, on_point=report)
     summary = {

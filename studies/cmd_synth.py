@@ -75,7 +75,7 @@ def parse_effects(items: list[str]) -> dict[str, dict[str, float]]:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab synth``."""
-    from fe.effects import REGISTRY, validate_effects
+    from fe.effects import validate_effects
     from validation.model_file import read_model
     from validation.synth import (
         DEFAULT_DESIGN,
@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         synthesize,
     )
 
-    spec = read_model(args.model, REGISTRY)
+    spec = read_model(args.model)
     hidden = validate_effects(parse_effects(args.effect))
     design = DEFAULT_DESIGN if args.cases is None else parse_design(args.cases)
     settings = SynthSettings(

@@ -39,7 +39,7 @@ def make_model(
             raise ParameterError(
                 f"the bearing hinge has no clearance, got --clearance {clearance_mm} with --hinge bearing"
             )
-        kwargs = {} if preload_n is None else {"preload_n": preload_n}
+        kwargs: dict[str, Any] = {} if preload_n is None else {"preload_n": preload_n}
         return make_bearing_hinge(BearingHingeParams(**kwargs))
     raise ParameterError(f"hinge must be one of {HINGES}, got {hinge!r}")
 

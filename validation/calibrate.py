@@ -106,7 +106,7 @@ def calibrate(
     rows = [LedgerRow("baseline", {}, 0, c, err, err, c, c)]
     k0 = 0
     if fit_mu:
-        from validation.diagnose import _folds
+        from validation.candidate_fit import _folds
 
         everything = np.ones(len(meas.points), dtype=bool)
         mu = _fit_mu(ev, meas, everything, maxiter=12)

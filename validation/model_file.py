@@ -53,9 +53,12 @@ __all__ = [
 
 
 class _Param(typing.Protocol):
-    name: str
-    lo: float
-    hi: float
+    @property
+    def name(self) -> str: ...
+    @property
+    def lo(self) -> float: ...
+    @property
+    def hi(self) -> float: ...
 
 
 class _Effect(typing.Protocol):
@@ -156,8 +159,8 @@ def _read_section(
 
 
 def _read_materials(cls: Any, table: Mapping[str, Any], path: Path) -> dict[str, Material]:
-    defaults = {
-        f.name.removesuffix(_MATERIAL_SUFFIX): f.default
+    defaults: dict[str, Material] = {
+        f.name.removesuffix(_MATERIAL_SUFFIX): typing.cast(Material, f.default)
         for f in fields(cls)
         if f.name.endswith(_MATERIAL_SUFFIX)
     }
