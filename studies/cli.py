@@ -25,6 +25,7 @@ SUBCOMMAND_MODULES = (
     "studies.cmd_synth",
     "studies.cmd_diagnose",
     "studies.cmd_calibrate",
+    "studies.cmd_export_inp",
     "studies.cmd_repeatability",
 )
 

@@ -1,0 +1,483 @@
+"""Write a meshed hinge as an ABAQUS/CalculiX input deck (``.inp``), plain and commented.
+
+What goes where (``**`` lines in the deck say the same next to each block):
+
+* ``*NODE``: our node ``i`` is deck node ``i + 1``; ``*ELEMENT, TYPE=C3D8I``: our element
+  ``e`` is deck element ``e + 1``, one ELSET per part. C3D8I is the incompatible-modes
+  hexahedron of ABAQUS and CalculiX, the counterpart of ``fe.element``'s default. The
+  C3D8 node order is the VTK order of ``mesh.hexmesh`` (bottom face 1-2-3-4
+  counter-clockwise seen from +ζ, top face 5-8 above it), so connectivity is copied as is.
+* Every facet set becomes an NSET (its nodes) and an element-face ``*SURFACE`` of the same
+  name (``elem, S1`` … ``S6``, see ``C3D8_FACES``).
+* Each contact pair: a ``*SURFACE INTERACTION`` (penalty normal law and Coulomb friction
+  with a stick slope: the deck's regularisation, our solver has none) and a
+  ``*CONTACT PAIR`` with slave = pin side, master = hole side; each bonded pair a ``*TIE``.
+* Boundary conditions as in our solver: FIXED faces fully fixed; the LOAD face (the grip)
+  held in the two directions across its normal and moved rigidly along it (``*EQUATION``
+  ties every node to a reference node that carries the force, so the total force on the
+  face is Fg).
+* Parts with neither a FIXED nor a LOAD face (the pin) are held only by contact. A direct
+  solver needs something for their rigid modes before contact closes: weak grounded
+  springs (``SPRING1``) on all their nodes, ``float_spring_n_per_mm`` in total per
+  direction. With clearance the grip also floats across the free play, so it gets a
+  grounded spring too, and its ``*CLOAD`` is raised by that spring's force at the
+  touching configuration (k·2Δr) so that the hinge itself carries ±Fg at the peaks.
+* Three ``*STEP`` blocks: 0 → +Fg → −Fg → +Fg (a static step ramps a ``*CLOAD`` linearly
+  from the previous step's value), each printing the grip displacement and the total
+  reaction of the FIXED faces (= the force through the hinge) per increment to the
+  ``.dat`` file, which ``fe.interop.ccx`` reads.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from cad.errors import MeshQualityError, ParameterError, check_range
+from cad.materials import Material
+from cad.model import FaceRole, NamedFace, PairKind
+from cad.surfaces import Plane
+from mesh.hexmesh import HexMesh
+
+IntArray = npt.NDArray[np.int64]
+
+C3D8_FACES: tuple[tuple[int, int, int, int], ...] = (
+    (0, 1, 2, 3),
+    (4, 7, 6, 5),
+    (0, 4, 5, 1),
+    (1, 5, 6, 2),
+    (2, 6, 7, 3),
+    (3, 7, 4, 0),
+)
+"""Local (0-based) nodes of the C3D8 faces S1 … S6, as ABAQUS and CalculiX number them::
+
+        8 -------- 7          S1 = 1-2-3-4  (ζ = −1)    S4 = 2-6-7-3  (ξ = +1)
+       /|         /|          S2 = 5-8-7-6  (ζ = +1)    S5 = 3-7-8-4  (η = +1)
+      5 -------- 6 |          S3 = 1-5-6-2  (η = −1)    S6 = 4-8-5-1  (ξ = −1)
+      | 4 -------|-3
+      |/         |/           (1-based, the deck's numbering; the VTK order of
+      1 -------- 2            mesh.hexmesh with every index + 1)
+"""
+
+GRIP_REF_SET = "grip_ref"
+"""NSET holding the one node that carries the grip force (and whose x is the grip's)."""
+
+CYCLE = (1.0, -1.0, 1.0)
+"""Load factors at the end of the three steps of the cycle: 0 → +Fg → −Fg → +Fg."""
+
+_PER_LINE = 8
+_NAME_RE = re.compile(r"[^A-Za-z0-9_]")
+
+
+class ContactType(Enum):
+    """CalculiX's two penalty contact discretisations (the deck's ``TYPE=``)."""
+
+    NODE_TO_SURFACE = "NODE TO SURFACE"
+    SURFACE_TO_SURFACE = "SURFACE TO SURFACE"
+
+
+@dataclass(frozen=True)
+class DeckSettings:
+    """What the deck needs beyond the mesh.
+
+    Attributes:
+        amplitude_n: Force amplitude Fg [N].
+        mu: Coulomb friction coefficient of every contact pair (0: no ``*FRICTION``).
+        clearance_mm: Radial clearance Δr of the model [mm] (sizes the grip spring's
+            force offset; the geometry itself comes from the mesh).
+        increments_per_stage: Largest increment = 1/this of a step (the initial 0 → +Fg
+            step uses half as many, as our cycle does).
+        contact: Node-to-surface (a spring per pin node, like our node-wise Lagrange
+            multipliers) or surface-to-surface (integration points on the slave faces).
+        penalty_mpa_per_mm: Slope of the linear pressure-overclosure law [MPa/mm].
+        stick_slope_mpa_per_mm: Slope of shear stress versus elastic slip [MPa/mm].
+        tension_mpa: Node-to-surface only: CalculiX's tension for open gaps σ∞ [MPa]
+            (it smooths the law over ε = σ∞π/K; small, or it pulls on open nodes).
+        adjust_mm: Slave nodes closer than this, or penetrating, are moved onto the master
+            facets before the first step [mm]. At Δr = 0 every pin node sits on the
+            exact cylinder, beyond the hole's chords, so all are moved; with clearance
+            none are.
+        float_spring_n_per_mm: Total grounded spring per direction on every part held
+            only by contact [N/mm] (spread over its nodes).
+        grip_spring_n_per_mm: Grounded spring on the grip reference node [N/mm]; None:
+            0 at Δr = 0, else 50 (then the force crosses the free play of 4Δr in 20 N).
+        load_factors: Grip force at the end of each step as a multiple of Fg, starting
+            from 0 (``CYCLE``; ``(1.0,)`` is the first loading alone).
+    """
+
+    amplitude_n: float = 400.0
+    mu: float = 0.2
+    clearance_mm: float = 0.0
+    increments_per_stage: int = 20
+    contact: ContactType = ContactType.NODE_TO_SURFACE
+    penalty_mpa_per_mm: float = 1e6
+    stick_slope_mpa_per_mm: float = 1e6
+    tension_mpa: float = 1e-3
+    adjust_mm: float = 1e-4
+    float_spring_n_per_mm: float = 1.0
+    grip_spring_n_per_mm: float | None = None
+    load_factors: tuple[float, ...] = CYCLE
+
+    def __post_init__(self) -> None:
+        if not self.load_factors:
+            raise ParameterError("load_factors must hold at least one step, got ()")
+        for k, f in enumerate(self.load_factors):
+            check_range(f"load_factors[{k}]", f, -10.0, 10.0)
+        check_range("amplitude_n", self.amplitude_n, 0.0, 1e6, lo_open=True)
+        check_range("mu", self.mu, 0.0, 2.0)
+        check_range("clearance_mm", self.clearance_mm, 0.0, 10.0)
+        check_range("increments_per_stage", self.increments_per_stage, 2, 10_000)
+        check_range("penalty_mpa_per_mm", self.penalty_mpa_per_mm, 0.0, 1e12, lo_open=True)
+        check_range("stick_slope_mpa_per_mm", self.stick_slope_mpa_per_mm, 0.0, 1e12, lo_open=True)
+        check_range("tension_mpa", self.tension_mpa, 0.0, 1e3, lo_open=True)
+        check_range("adjust_mm", self.adjust_mm, 0.0, 10.0)
+        check_range("float_spring_n_per_mm", self.float_spring_n_per_mm, 0.0, 1e9)
+        if self.grip_spring_n_per_mm is not None:
+            check_range("grip_spring_n_per_mm", self.grip_spring_n_per_mm, 0.0, 1e9)
+
+    @property
+    def grip_spring(self) -> float:
+        """The grip spring actually written [N/mm]."""
+        if self.grip_spring_n_per_mm is not None:
+            return self.grip_spring_n_per_mm
+        return 0.0 if self.clearance_mm == 0.0 else 50.0
+
+    @property
+    def peak_cload_n(self) -> float:
+        """The ``*CLOAD`` at ±Fg: Fg plus the grip spring's force at δ = 2Δr [N]."""
+        return self.amplitude_n + self.grip_spring * 2.0 * self.clearance_mm
+
+
+def inp_name(name: str) -> str:
+    """Return ``name`` as a deck label: letters, digits and ``_``, starting with a letter.
+
+    Raises:
+        ParameterError: If ``name`` is empty.
+    """
+    if not name:
+        raise ParameterError("a set, part or material name must not be empty")
+    out = _NAME_RE.sub("_", name)
+    return out if out[0].isalpha() else "N_" + out
+
+
+def facet_element_faces(mesh: HexMesh, facets: IntArray) -> tuple[IntArray, IntArray]:
+    """Find the element and C3D8 face (1 … 6) that each boundary facet is.
+
+    Args:
+        mesh: The mesh.
+        facets: Quad facets, shape (n, 4), int64, our node indices.
+
+    Returns:
+        (element indices (n,) int64, 0-based; face numbers (n,) int64 in 1 … 6).
+
+    Raises:
+        MeshQualityError: If a facet is no face of any element.
+    """
+    faces = mesh.hexes[:, np.array(C3D8_FACES)]  # (n_elem, 6, 4)
+    key_all = np.sort(faces.reshape(-1, 4), axis=1)
+    lookup = {tuple(k): i for i, k in enumerate(key_all.tolist())}
+    found = [lookup.get(tuple(k), -1) for k in np.sort(facets, axis=1).tolist()]
+    missing = [i for i, f in enumerate(found) if f < 0]
+    if missing:
+        raise MeshQualityError(
+            f"{len(missing)} facet(s) are no element face, e.g. nodes {facets[missing[0]].tolist()}"
+        )
+    idx = np.asarray(found, dtype=np.int64)
+    return idx // 6, idx % 6 + 1
+
+
+def _rows(values: Iterable[object], per_line: int = _PER_LINE) -> list[str]:
+    items = [str(v) for v in values]
+    return [", ".join(items[i : i + per_line]) for i in range(0, len(items), per_line)]
+
+
+def _num(x: float) -> str:
+    """Format a number in at most 19 characters: CalculiX reads fields of 20 at most."""
+    return f"{float(x):.13g}"
+
+
+def _load_axis(face: NamedFace) -> tuple[int, float]:
+    """Return (deck DOF 1-3, sign) of a LOAD face's outward normal, which must be axis-aligned."""
+    if not isinstance(face.surface, Plane):
+        raise ParameterError(f"load face {face.name!r} must be a plane, got {face.surface!r}")
+    n = np.asarray(face.surface.normal, dtype=np.float64)
+    axis = int(np.argmax(np.abs(n)))
+    if not math.isclose(abs(n[axis]), float(np.linalg.norm(n)), rel_tol=1e-12):
+        raise ParameterError(f"load face {face.name!r} normal must lie along x, y or z, got {n}")
+    return axis + 1, float(np.sign(n[axis]))
+
+
+@dataclass(frozen=True)
+class _Roles:
+    fixed: tuple[str, ...]
+    load: str
+    floating: tuple[str, ...]
+
+
+def _roles(mesh: HexMesh, faces: Mapping[str, NamedFace]) -> _Roles:
+    named = {n: faces[n] for n in mesh.facet_sets if n in faces}
+    fixed = tuple(sorted(n for n, f in named.items() if f.role is FaceRole.FIXED))
+    load = sorted(n for n, f in named.items() if f.role is FaceRole.LOAD)
+    if not fixed:
+        raise ParameterError(f"the mesh has no FIXED facet set; sets are {sorted(mesh.facet_sets)}")
+    if len(load) != 1:
+        raise ParameterError(f"the mesh needs exactly one LOAD facet set, got {load}")
+    held = {named[n].part for n in (*fixed, *load)}
+    floating = tuple(p for p in mesh.part_names if p not in held)
+    return _Roles(fixed, load[0], floating)
+
+
+def _header(mesh: HexMesh, s: DeckSettings, title: str) -> list[str]:
+    return [
+        "*HEADING",
+        title or "hingelab hinge model",
+        "** Written by hingelab (fe.interop.inp). Units: mm, N, MPa, s.",
+        f"** {mesh.n_nodes} nodes, {mesh.n_elem} C3D8I elements, parts {', '.join(mesh.part_names)}.",
+        f"** Load: 0 -> +{s.amplitude_n:g} N -> -{s.amplitude_n:g} N -> +{s.amplitude_n:g} N, "
+        f"mu = {s.mu:g}, clearance = {s.clearance_mm:g} mm.",
+        "** Our node i is deck node i+1, our element e is deck element e+1.",
+    ]
+
+
+def _geometry(mesh: HexMesh) -> list[str]:
+    out = ["**", "** ---- Nodes [mm] ----", "*NODE, NSET=all_nodes"]
+    out += [f"{i + 1}, {_num(x)}, {_num(y)}, {_num(z)}" for i, (x, y, z) in enumerate(mesh.nodes)]
+    out += ["**", "** ---- Elements: C3D8I (incompatible modes), one ELSET per part ----"]
+    out += ["** Node order C3D8 = VTK hexahedron: 1-2-3-4 bottom, 5-6-7-8 above them."]
+    for p in mesh.part_names:
+        out += [f"*ELEMENT, TYPE=C3D8I, ELSET={inp_name(p)}"]
+        out += [
+            f"{e + 1}, " + ", ".join(str(n + 1) for n in mesh.hexes[e])
+            for e in mesh.part_elements(p)
+        ]
+    return out
+
+
+def _sets(mesh: HexMesh) -> list[str]:
+    out = ["**", "** ---- Named sets: each facet set as an NSET and an element-face SURFACE ----"]
+    for name in sorted(mesh.facet_sets):
+        label = inp_name(name)
+        elem, face = facet_element_faces(mesh, mesh.facet_sets[name])
+        out += [f"** {name}: {len(face)} facets, {len(mesh.set_nodes(name))} nodes"]
+        out += [f"*NSET, NSET={label}", *_rows(mesh.set_nodes(name) + 1)]
+        out += [f"*SURFACE, NAME={label}, TYPE=ELEMENT"]
+        out += [f"{e + 1}, S{f}" for e, f in zip(elem.tolist(), face.tolist(), strict=True)]
+    for name in sorted(mesh.node_sets):
+        out += [f"*NSET, NSET={inp_name(name)}", *_rows(np.unique(mesh.node_sets[name]) + 1)]
+    return out
+
+
+def _materials(mesh: HexMesh) -> list[str]:
+    out = ["**", "** ---- Materials (isotropic linear elastic, MPa) and solid sections ----"]
+    labels: dict[Material, str] = {}
+    for m in mesh.materials:
+        if m not in labels:
+            labels[m] = inp_name("mat_" + m.name)
+            out += [
+                f"*MATERIAL, NAME={labels[m]}",
+                "*ELASTIC",
+                f"{_num(m.young_mpa)}, {_num(m.poisson)}",
+            ]
+    for p, m in zip(mesh.part_names, mesh.materials, strict=True):
+        out += [f"*SOLID SECTION, ELSET={inp_name(p)}, MATERIAL={labels[m]}"]
+    return out
+
+
+def _interactions(mesh: HexMesh, s: DeckSettings) -> list[str]:
+    out: list[str] = []
+    for pair in mesh.pairs:
+        slave, master = inp_name(pair.slave), inp_name(pair.master)
+        if pair.kind is PairKind.BONDED:
+            out += [
+                "**",
+                f"** ---- Bonded pair {pair.name}: tied ({pair.slave} follows {pair.master}) ----",
+                f"*TIE, NAME={inp_name('tie_' + pair.name)}",
+                f"{slave}, {master}",
+            ]
+            continue
+        name = inp_name("contact_" + pair.name)
+        law = (
+            f"{_num(s.penalty_mpa_per_mm)}, {_num(s.tension_mpa)}"
+            if s.contact is ContactType.NODE_TO_SURFACE
+            else _num(s.penalty_mpa_per_mm)
+        )
+        out += [
+            "**",
+            f"** ---- Contact pair {pair.name}: slave {pair.slave} (pin side), "
+            f"master {pair.master} (hole side) ----",
+            "** Normal: penalty, pressure = slope x overclosure [MPa/mm]"
+            + (", then the tension for open gaps [MPa]." if "," in law else "."),
+            "** Friction: Coulomb mu, then the stick slope [MPa/mm] (elastic slip before sliding;",
+            "** our solver sticks exactly, so a stiffer slope is closer to it).",
+            f"*SURFACE INTERACTION, NAME={name}",
+            "*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR",
+            law,
+        ]
+        if s.mu > 0.0:
+            out += ["*FRICTION", f"{_num(s.mu)}, {_num(s.stick_slope_mpa_per_mm)}"]
+        out += [
+            f"** ADJUST: slave nodes within {s.adjust_mm:g} mm of the master facets, or"
+            " penetrating them, start on them.",
+            f"*CONTACT PAIR, INTERACTION={name}, TYPE={s.contact.value}, ADJUST={_num(s.adjust_mm)}",
+            f"{slave}, {master}",
+        ]
+    return out
+
+
+def _boundary(mesh: HexMesh, faces: Mapping[str, NamedFace], roles: _Roles) -> list[str]:
+    dof, _ = _load_axis(faces[roles.load])
+    across = [d for d in (1, 2, 3) if d != dof]
+    grip = mesh.set_nodes(roles.load) + 1
+    ref = int(grip[0])
+    out = ["**", "** ---- Boundary conditions (a tensile machine with rigid grips) ----"]
+    for name in roles.fixed:
+        out += [f"** {name}: fully fixed.", "*BOUNDARY", f"{inp_name(name)}, 1, 3"]
+    out += [
+        f"** {roles.load}: held in DOFs {across[0]} and {across[1]}; moves rigidly along DOF {dof}:",
+        f"** every node's DOF {dof} equals that of node {ref} (NSET {GRIP_REF_SET}), which carries the",
+        "** force, so the total force on the face is the *CLOAD.",
+        f"*NSET, NSET={GRIP_REF_SET}",
+        str(ref),
+        "*BOUNDARY",
+        f"{inp_name(roles.load)}, {across[0]}, {across[0]}",
+        f"{inp_name(roles.load)}, {across[1]}, {across[1]}",
+        "*EQUATION",
+    ]
+    for n in grip[1:].tolist():
+        out += ["2", f"{n}, {dof}, 1.0, {ref}, {dof}, -1.0"]
+    return out
+
+
+def _springs(mesh: HexMesh, s: DeckSettings, roles: _Roles, dof: int, first: int) -> list[str]:
+    out: list[str] = []
+    eid = first
+    for part in roles.floating:
+        nodes = mesh.part_nodes(part) + 1
+        k = s.float_spring_n_per_mm / len(nodes)
+        if s.float_spring_n_per_mm == 0.0:
+            continue
+        out += [
+            "**",
+            f"** ---- {part} is held only by contact: grounded springs on all {len(nodes)} nodes,",
+            f"** {s.float_spring_n_per_mm:g} N/mm in total per direction, remove its rigid modes"
+            " before contact closes. ----",
+        ]
+        for d in (1, 2, 3):
+            elset = inp_name(f"spring_{part}_{'xyz'[d - 1]}")
+            out += [f"*ELEMENT, TYPE=SPRING1, ELSET={elset}"]
+            out += [f"{eid + i}, {n}" for i, n in enumerate(nodes.tolist())]
+            eid += len(nodes)
+            out += [f"*SPRING, ELSET={elset}", str(d), _num(k)]
+    if s.grip_spring > 0.0:
+        ref = int(mesh.set_nodes(roles.load)[0]) + 1
+        out += [
+            "**",
+            f"** ---- Grip spring {s.grip_spring:g} N/mm to ground: holds the grip across the free",
+            f"** play 4 dr; at +-2 dr it takes {s.grip_spring * 2 * s.clearance_mm:g} N, added to"
+            " the *CLOAD. ----",
+            "*ELEMENT, TYPE=SPRING1, ELSET=spring_grip",
+            f"{eid}, {ref}",
+            "*SPRING, ELSET=spring_grip",
+            str(dof),
+            _num(s.grip_spring),
+        ]
+    return out
+
+
+def _steps(s: DeckSettings, roles: _Roles, sign: float, dof: int) -> list[str]:
+    out: list[str] = []
+    previous = 0.0
+    for k, target in enumerate(s.load_factors):
+        n = max(2, s.increments_per_stage // 2) if k == 0 else s.increments_per_stage
+        dt = 1.0 / n
+        force = sign * target * s.peak_cload_n
+        out += [
+            "**",
+            f"** ==== Step {k + 1}: grip force {previous * s.amplitude_n:+g} -> "
+            f"{target * s.amplitude_n:+g} N, ramped linearly over step time 1 ====",
+            "** *STATIC: initial increment, step time, smallest increment, largest increment.",
+            "*STEP, INC=10000",
+            "*STATIC",
+            f"{_num(dt)}, 1.0, {_num(dt * 1e-5)}, {_num(dt)}",
+            "*CLOAD",
+            f"{GRIP_REF_SET}, {dof}, {_num(force)}",
+            "** Per increment to the .dat file: the grip displacement, and the total reaction of",
+            "** the fixed faces (minus the force carried through the hinge).",
+            f"*NODE PRINT, NSET={GRIP_REF_SET}",
+            "U",
+        ]
+        for name in roles.fixed:
+            out += [f"*NODE PRINT, NSET={inp_name(name)}, TOTALS=ONLY", "RF"]
+        out += [
+            "** Fields for a viewer (.frd): displacements, stresses, contact status/stresses.",
+            "*NODE FILE",
+            "U",
+            "*EL FILE",
+            "S",
+            "*CONTACT FILE",
+            "CDIS, CSTR",
+            "*END STEP",
+        ]
+        previous = target
+    return out
+
+
+def deck_text(
+    mesh: HexMesh, faces: Mapping[str, NamedFace], settings: DeckSettings, *, title: str = ""
+) -> str:
+    """Return the input deck of a meshed hinge.
+
+    Args:
+        mesh: The mesh; its facet sets, pairs and parts name everything in the deck.
+        faces: The model's named faces (``HingeModel.faces``): their roles say which sets
+            are fixed (FIXED), loaded (LOAD, exactly one, a plane normal to x, y or z).
+        settings: Load, friction and contact-law settings.
+        title: The ``*HEADING`` line.
+
+    Returns:
+        The deck, one string ending in a newline.
+
+    Raises:
+        ParameterError: No FIXED set, not exactly one LOAD set, or a load face that is not
+            an axis-aligned plane.
+        MeshQualityError: A facet that is no element face, or two names that become one
+            deck label.
+    """
+    labels = [inp_name(n) for n in (*mesh.part_names, *mesh.facet_sets, *mesh.node_sets)]
+    dupes = sorted({x for x in labels if [y.upper() for y in labels].count(x.upper()) > 1})
+    if dupes:
+        raise MeshQualityError(f"names collide as deck labels (case-insensitive): {dupes}")
+    roles = _roles(mesh, faces)
+    dof, sign = _load_axis(faces[roles.load])
+    lines = [
+        *_header(mesh, settings, title),
+        *_geometry(mesh),
+        *_sets(mesh),
+        *_materials(mesh),
+        *_boundary(mesh, faces, roles),
+        *_springs(mesh, settings, roles, dof, first=mesh.n_elem + 1),
+        *_interactions(mesh, settings),
+        *_steps(settings, roles, sign, dof),
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def write_deck(
+    mesh: HexMesh,
+    faces: Mapping[str, NamedFace],
+    settings: DeckSettings,
+    path: Path,
+    *,
+    title: str = "",
+) -> Path:
+    """Write ``deck_text(mesh, faces, settings)`` to ``path`` (parents created); return it."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(deck_text(mesh, faces, settings, title=title), encoding="utf-8")
+    return path
