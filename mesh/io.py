@@ -4,11 +4,14 @@ Both files hold the hexahedra (cell data ``part``: index into the part names) an
 every named facet set as quadrilaterals (cell data ``set``: index into the set
 names; −1 on hexahedra, and ``part`` −1 on quads). The .msh file (format 2.2) carries the
 names as physical groups (``gmsh:physical``), so gmsh and meshio read them back; the .vtu
-file carries them in its field data, so ParaView can threshold by part or set.
+file carries them in its field data: one one-value integer array per name, ``part:NAME``
+= the part's ``part`` code and ``set:NAME`` = the set's ``set`` code, so ParaView's
+Information panel lists what each code is and one can threshold by part or set.
 """
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import meshio
@@ -64,7 +67,36 @@ def write_vtu(mesh: HexMesh, path: Path) -> Path:
     del m.cell_data["gmsh:physical"], m.cell_data["gmsh:geometrical"]
     m.field_data = {}
     meshio.write(path, m, file_format="vtu", binary=True)
+    _add_field_data(path, vtu_name_codes(mesh))
     return path
+
+
+def vtu_name_codes(mesh: HexMesh) -> dict[str, int]:
+    """Return the .vtu field-data table: ``part:NAME`` → part code, ``set:NAME`` → set code."""
+    codes = {f"part:{p}": i for i, p in enumerate(mesh.part_names)}
+    return codes | {f"set:{s}": i for i, s in enumerate(sorted(mesh.facet_sets))}
+
+
+def _add_field_data(path: Path, codes: dict[str, int]) -> None:
+    """Insert a VTK ``<FieldData>`` block of one-value Int64 arrays into a .vtu file.
+
+    meshio reads FieldData from .vtu files but does not write it, so it is added to the
+    XML here (ASCII arrays, which every VTK reader and meshio accept).
+    """
+    tree = ET.parse(path)
+    grid = tree.getroot().find("UnstructuredGrid")
+    if grid is None:
+        raise MeshQualityError(f"{path}: no UnstructuredGrid element to add names to")
+    block = ET.Element("FieldData")
+    for name, code in codes.items():
+        arr = ET.SubElement(
+            block,
+            "DataArray",
+            {"type": "Int64", "Name": name, "NumberOfTuples": "1", "format": "ascii"},
+        )
+        arr.text = str(code)
+    grid.insert(0, block)
+    tree.write(path, xml_declaration=True, encoding="utf-8")
 
 
 def read_msh_summary(path: Path) -> dict[str, object]:

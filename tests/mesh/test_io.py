@@ -50,3 +50,17 @@ def test_vtu_holds_parts_and_sets(mesh, tmp_path):
     assert np.array_equal(np.bincount(part[part >= 0]), np.bincount(mesh.elem_part))
     n_quads = sum(len(c.data) for c in m.cells if c.type == "quad")
     assert n_quads == sum(len(f) for f in mesh.facet_sets.values())
+
+
+def test_vtu_names_its_part_and_set_codes(mesh, tmp_path):
+    """ParaView shows the field data: every part and set code comes with its name."""
+    m = meshio.read(write_vtu(mesh, tmp_path / "m.vtu"))
+    names = {k: int(np.ravel(v)[0]) for k, v in m.field_data.items()}
+    assert names == {f"part:{p}": i for i, p in enumerate(mesh.part_names)} | {
+        f"set:{s}": i for i, s in enumerate(sorted(mesh.facet_sets))
+    }
+    part = np.concatenate(m.cell_data["part"])
+    assert np.array_equal(part[: mesh.n_elem], mesh.elem_part)
+    set_code = np.concatenate(m.cell_data["set"])[mesh.n_elem :]
+    sizes = {s: int((set_code == names[f"set:{s}"]).sum()) for s in mesh.facet_sets}
+    assert sizes == {s: len(f) for s, f in mesh.facet_sets.items()}
