@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out/demo
 
-.PHONY: demo test test-all lint bench clean
+.PHONY: demo test test-all lint bench clean crosscheck
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -29,6 +29,12 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do $(BIN)/python $$b; done
+
+# Our loops against CalculiX on the same mesh (docs/calculix_crosscheck.md); installs ccx if missing.
+crosscheck: $(STAMP)
+	@command -v ccx >/dev/null || { echo "ccx missing: installing CalculiX with apt-get (needs root)"; \
+		apt-get update && apt-get install -y calculix-ccx; }
+	$(BIN)/python -m pytest -q -m "slow or not slow" tests/fe/test_inp.py tests/fe/test_ccx_crosscheck.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

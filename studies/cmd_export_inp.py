@@ -45,6 +45,13 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         metavar="MPA_PER_MM",
         help="friction stick slope [MPa/mm] (default 1e6)",
     )
+    p.add_argument(
+        "--steps",
+        type=int,
+        choices=(1, 2, 3),
+        default=3,
+        help="write the first N steps of 0 → +Fg → −Fg → +Fg (default 3, the cycle)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -54,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     from cad.bearing import make_bearing_hinge
     from cad.general import GeneralHingeParams, make_general_hinge
     from fe.effects import REGISTRY
-    from fe.interop.inp import ContactType, DeckSettings, write_deck
+    from fe.interop.inp import CYCLE, ContactType, DeckSettings, write_deck
     from mesh.build import mesh_hinge
     from validation.model_file import read_model, with_clearance
 
@@ -87,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
             contact=ContactType.NODE_TO_SURFACE
             if args.contact == "node"
             else ContactType.SURFACE_TO_SURFACE,
+            load_factors=CYCLE[: args.steps],
         ),
         **overrides,
     )

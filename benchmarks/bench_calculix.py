@@ -1,0 +1,213 @@
+"""Our solver against CalculiX on the same cycle and mesh: wall time and peak memory.
+
+Both solve the general hinge's 0 → +Fg → −Fg → +Fg cycle (400 N, μ = 0.2, Δr = 0) on
+the same mesh. Ours (``hingelab cycle``) factorises the stiffness once and condenses it
+onto the contact points; ccx (the deck of ``hingelab export-inp``: C3D8I, node-to-surface
+penalty contact) assembles and refactorises the full unsymmetric system in every Newton
+iteration. Each solver runs as its own process, one at a time, ccx on one thread; peak
+memory is the process's maximum resident set (``wait4``).
+
+Run:
+    .venv/bin/python benchmarks/bench_calculix.py [coarse,default] [timeout_s]
+    .venv/bin/python benchmarks/bench_calculix.py penalty   # frictionless δ(+Fg) vs slope
+
+The table goes into docs/calculix_crosscheck.md.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import print_table
+
+ROOT = Path(__file__).resolve().parents[1]
+AMPLITUDE_N = 400.0
+MU = 0.2
+PENALTIES = (1e4, 1e5, 1e6, 1e7, 1e8)
+
+
+def model_file(folder: Path, mesh: str, clearance_mm: float = 0.0) -> Path:
+    """Write the benchmark's MODEL.toml (coarse or default mesh)."""
+    from cad.general import GeneralHingeParams
+    from fe.hinge.cycle import CycleSettings
+    from mesh.settings import MeshSettings
+    from validation.model_file import ModelSpec, write_model
+
+    settings = MeshSettings.coarse() if mesh == "coarse" else MeshSettings()
+    spec = ModelSpec(
+        "general",
+        GeneralHingeParams(clearance_mm=clearance_mm),
+        settings,
+        CycleSettings(amplitude_n=AMPLITUDE_N, mu=MU),
+    )
+    return write_model(spec, folder / f"{mesh}.toml")
+
+
+def timed(cmd: list[str], timeout_s: float, cwd: Path | None = None) -> tuple[float, float, int]:
+    """Run ``cmd``; return (wall [s], peak resident memory [MB], exit status)."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(
+        cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env
+    )
+    while True:
+        pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+        if pid:
+            return (
+                time.perf_counter() - t0,
+                usage.ru_maxrss / 1024.0,
+                os.waitstatus_to_exitcode(status),
+            )
+        if time.perf_counter() - t0 > timeout_s:
+            proc.kill()
+            proc.wait()
+            return float("inf"), float("nan"), -9
+        time.sleep(0.1)
+
+
+def compare(mesh: str, folder: Path, timeout_s: float) -> dict[str, object]:
+    """Run both solvers on one mesh; return a table row."""
+    toml = model_file(folder, mesh)
+    out = folder / f"ours_{mesh}"
+    hingelab = str(ROOT / ".venv" / "bin" / "hingelab")
+    ours_s, ours_mb, rc = timed(
+        [
+            hingelab,
+            "cycle",
+            "--model",
+            str(toml),
+            "--out",
+            str(out),
+            "--no-progress",
+            "--frames",
+            "0",
+        ],
+        timeout_s,
+    )
+    result = json.loads((out / "result.json").read_text()) if rc == 0 else {}
+    deck = folder / f"ccx_{mesh}" / "hinge.inp"
+    subprocess.run(
+        [hingelab, "export-inp", str(toml), "--out", str(deck)], check=True, capture_output=True
+    )
+    ccx_s, ccx_mb, ccx_rc = _ccx(deck, timeout_s)
+    sta = deck.with_suffix(".sta")
+    lines = sta.read_text().splitlines()[1:] if sta.exists() else []
+    return {
+        "mesh": mesh,
+        "n_hex": result.get("n_hex", ""),
+        "n_dof_ours": result.get("n_dof", ""),
+        "ours_s": ours_s,
+        "ours_MB": ours_mb,
+        "ccx_s": ccx_s,
+        "ccx_MB": ccx_mb,
+        "ccx_incs": len(lines),
+        "ccx_iters": sum(int(ln.split()[3].rstrip("U")) for ln in lines if len(ln.split()) > 3),
+        "ccx_ok": ccx_rc == 0,
+        "time_ratio": ccx_s / ours_s,
+        "mem_ratio": ccx_mb / ours_mb,
+    }
+
+
+def _ccx(deck: Path, timeout_s: float) -> tuple[float, float, int]:
+    """Run ccx on a deck; exit status 1 if it stopped on a failed increment."""
+    wall, mb, rc = timed(["ccx", "-i", deck.stem], timeout_s, cwd=deck.parent)
+    log = deck.with_suffix(".sta")
+    if rc == 0 and log.exists() and "U" in log.read_text().splitlines()[-1].split()[2]:
+        rc = 1  # ccx exits 0 even when an increment fell below the minimum size
+    return wall, mb, rc
+
+
+def penalty_table(folder: Path) -> list[dict[str, object]]:
+    """Frictionless first loading: ccx's δ(+Fg) per penalty slope against ours (μ = 0)."""
+    from fe.interop.ccx import loop_from_dat, parse_dat, run_ccx
+    from fe.interop.inp import GRIP_REF_SET
+    from studies.cli import main
+
+    toml = model_file(folder, "coarse")
+    out = folder / "ours_mu0"
+    main(
+        [
+            "cycle",
+            "--model",
+            str(toml),
+            "--mu",
+            "0",
+            "--out",
+            str(out),
+            "--no-progress",
+            "--frames",
+            "0",
+        ]
+    )
+    rows = list((out / "loop.csv").read_text().splitlines())[1:]
+    ours = next(
+        float(r.split(",")[1])
+        for r in rows
+        if r.split(",")[2] == "0" and float(r.split(",")[0]) == AMPLITUDE_N
+    )
+    table = []
+    for contact in ("node", "surface"):
+        for k in PENALTIES:
+            deck = folder / f"pen_{contact}_{k:g}" / "hinge.inp"
+            argv = ["export-inp", str(toml), "--out", str(deck), "--mu", "0", "--steps", "1"]
+            main([*argv, "--penalty", f"{k:g}", "--contact", contact])
+            try:
+                run = run_ccx(deck, timeout_s=1800.0)
+                loop = loop_from_dat(parse_dat(run.dat), GRIP_REF_SET, ["tang_fixed"])
+                d, wall = float(loop.grip_disp_mm[-1]), run.wall_s
+            except Exception as err:  # a failed slope is a row of the table, not the end of it
+                d, wall = float("nan"), float("nan")
+                print(f"{contact} {k:g}: {err}", file=sys.stderr)
+            table.append(
+                {
+                    "contact": contact,
+                    "penalty_MPa_per_mm": f"{k:g}",
+                    "ccx_um": d * 1e3,
+                    "ours_um": ours * 1e3,
+                    "rel_diff": d / ours - 1.0,
+                    "ccx_s": wall,
+                }
+            )
+    return table
+
+
+if __name__ == "__main__":
+    args = sys.argv[1:]
+    if not any((Path(d) / "ccx").exists() for d in os.environ.get("PATH", "").split(os.pathsep)):
+        print("bench_calculix: no ccx on PATH (apt-get install calculix-ccx); skipped")
+        sys.exit(0)
+    with tempfile.TemporaryDirectory(prefix="bench_calculix_") as tmp:
+        if args[:1] == ["penalty"]:
+            rows = penalty_table(Path(tmp))
+            print_table(
+                rows, ["contact", "penalty_MPa_per_mm", "ccx_um", "ours_um", "rel_diff", "ccx_s"]
+            )
+        else:
+            meshes = (args[0] if args else "coarse,default").split(",")
+            timeout = float(args[1]) if len(args) > 1 else 7200.0
+            rows = [compare(m, Path(tmp), timeout) for m in meshes]
+            print_table(
+                rows,
+                [
+                    "mesh",
+                    "n_hex",
+                    "n_dof_ours",
+                    "ours_s",
+                    "ours_MB",
+                    "ccx_s",
+                    "ccx_MB",
+                    "ccx_incs",
+                    "ccx_iters",
+                    "ccx_ok",
+                    "time_ratio",
+                    "mem_ratio",
+                ],
+            )
