@@ -4,15 +4,21 @@ This sub-package is the contact algebra only: it imports nothing else from ``fe`
 
 * :mod:`fe.contact.law` — the Alart–Curnier/Coulomb law at one point;
 * :mod:`fe.contact.state` — settings, the converged state, the increment result, checks;
-* :mod:`fe.contact.newton` — residual and the reduced active-set Newton step (LU);
-* :mod:`fe.contact.krylov` — the same step by GMRES with a kept, updated LU;
-* :mod:`fe.contact.solve` — :func:`solve_increment`, the globalised iteration.
+* :mod:`fe.contact.newton` — residual and the reduced active-set Newton step;
+* :mod:`fe.contact.dense` — its dense LU (and the LU thread rule), bordered solves;
+* :mod:`fe.contact.krylov` — the same step by GMRES (:mod:`fe.contact.gmres`) with a
+  kept, updated LU;
+* :mod:`fe.contact.globalise` — the Newton loop: line search, rescues;
+* :mod:`fe.contact.proximal` — the fallback where no Newton step exists (singular ``W``);
+* :mod:`fe.contact.solve` — :func:`solve_increment`, which runs them.
 
 The stiffness is linear and constant; the caller condenses it once onto ``m`` contact
 points (slave nodes) and passes, per load increment,
 
-* ``W`` — the Delassus operator ``C K⁻¹ Cᵀ``, shape (3m, 3m), float64 [mm/N], symmetric
-  positive (semi)definite, rows and columns node-major ``[n, t1, t2]`` per point;
+* ``W`` — the Delassus operator ``C K⁻¹ Cᵀ``, shape (3m, 3m), float64 [mm/N], positive
+  (semi)definite, rows and columns node-major ``[n, t1, t2]`` per point; symmetric for
+  the hinge (a nonsymmetric ``W``, as from rigid-body impulse models, is detected once
+  per array and handled by general products and the LU path);
 * ``w_free`` — the relative displacement with zero contact force, shape (m, 3) [mm];
 * optionally ``G`` (3m, k) [mm per rigid amplitude] and ``e`` (k,) for floating bodies.
 
@@ -37,6 +43,8 @@ slipping point's tangential force along the slip direction is eliminated
 complement solved by least squares with ``rcond``, which gives the minimum-norm ``α``).
 While the unknown layout is unchanged and the iteration converges fast, the last LU
 factors are reused (chord steps: exact residual, stale matrix; see ``chord_rate``).
+Friction ``μ`` is one coefficient or one per point (``ContactSettings.mu``).
+
 Globalisation: Armijo backtracking on the merit ``φ = ½|C/r|² + ½|(Gᵀp - e)/r̄|²``.
 If no step ``>= min_step`` decreases ``φ`` (or the step matrix is singular) a rescue is
 taken, alternately (a) if some points are open, a full predictor step: floating bodies
@@ -46,6 +54,13 @@ floating pin in a clearance finds contact, and (b) rescaling ``r`` by the next f
 ``RESCUE_FACTORS``, which changes the merit and the active-set path but not the solution. The line search keeps ``φ``
 monotone between rescues, so the plain Newton cycle between active sets cannot occur;
 the loop stops at ``max_iter`` with a ConvergenceError.
+
+Singular step matrices: where ``W`` is rank deficient (more contact constraints than
+body freedoms, e.g. stacked rigid bodies) the reduced Jacobian of a sticking set is
+singular and no Newton step exists. The first such step hands the iterate to the
+proximal-point fallback of :mod:`fe.contact.proximal` (inner problems on
+``W + ε D`` with a shifted ``w_free``, same fixed points, ``ε`` driven down), which shares
+the ``max_iter`` budget; problems with a nonsingular active set never reach it.
 
 Convergence: the scaled residual ``ρ = max(|C/r|_∞ / d_ref, |Gᵀp - e|_∞ / f_ref)`` must
 drop to ``tol``, where ``d_ref = max(|W p|_∞, |G α|_∞, |w_free - (0, w_t_prev)|_∞)`` [mm]

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import threading
 import weakref
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -38,6 +37,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from cad.errors import check_range
+from fe.contact.gmres import gmres
 from fe.contact.law import ContactStatus
 from fe.contact.newton import (
     Factor,
@@ -308,9 +308,9 @@ def _precondition(base: Base, lin: Linear, ops: _Operators, opts: KrylovOptions)
             E = np.zeros((n0, len(qO)))
             E[qO, np.arange(len(qO))] = 1.0
             Z = sla.lu_solve(lu, E, trans=1, check_finite=False)
-            pc = _Precond(lu, n0, qS_new, qS_old, qN, qO, Z[qS_old], _lu_or_none(Z[qO]), *_empty())
+            pc = _Precond(lu, n0, qS_new, qS_old, qN, qO, Z[qS_old], _lu_or_none(Z[qO]), *_EMPTY)
         else:
-            pc = _Precond(lu, n0, qS_new, qS_old, qN, qO, np.zeros((0, 0)), None, *_empty())
+            pc = _Precond(lu, n0, qS_new, qS_old, qN, qO, np.zeros((0, 0)), None, *_EMPTY)
         if len(qN):
             J_N = _rows(ops, qN)  # (|N|, n)
             E = np.zeros((n, len(qN)))
@@ -325,8 +325,7 @@ def _precondition(base: Base, lin: Linear, ops: _Operators, opts: KrylovOptions)
     return pc
 
 
-def _empty() -> tuple[FloatArray, FloatArray, None]:
-    return np.zeros((0, 0)), np.zeros((0, 0)), None
+_EMPTY = (np.zeros((0, 0)), np.zeros((0, 0)), None)
 
 
 class _Bordered(NamedTuple):
@@ -372,72 +371,6 @@ def _apply_k(ops: _Operators, lin: Linear, r_bar: float, z: FloatArray) -> Float
     return np.concatenate([top, (lin.H @ x) / r_bar])
 
 
-class _Gmres(NamedTuple):
-    z: FloatArray
-    iterations: int
-    converged: bool
-
-
-def gmres(
-    apply_a: Callable[[FloatArray], FloatArray],
-    apply_p: Callable[[FloatArray], FloatArray],
-    rhs: FloatArray,
-    rtol: float,
-    max_iter: int,
-) -> _Gmres:
-    """Right-preconditioned GMRES from zero (no restart): ``|A z - rhs| <= rtol |rhs|``.
-
-    Args:
-        apply_a: ``z ↦ A z`` on vectors of shape (n,).
-        apply_p: The preconditioner ``y ↦ P y ≈ A⁻¹ y`` on vectors of shape (n,).
-        rhs: Right-hand side, shape (n,).
-        rtol: Relative tolerance on the true (unpreconditioned) residual.
-        max_iter: Iteration cap.
-
-    Returns:
-        The solution, the iterations used, and whether ``rtol`` was reached.
-    """
-    beta = float(np.linalg.norm(rhs))
-    if beta == 0.0:
-        return _Gmres(np.zeros_like(rhs), 0, True)
-    n = len(rhs)
-    V = np.zeros((max_iter + 1, n))
-    Z = np.zeros((max_iter, n))
-    Hh = np.zeros((max_iter + 1, max_iter))
-    cs, sn = np.zeros(max_iter), np.zeros(max_iter)
-    g = np.zeros(max_iter + 1)
-    g[0] = beta
-    V[0] = rhs / beta
-    j = 0
-    for j in range(max_iter):
-        Z[j] = apply_p(V[j])
-        w = apply_a(Z[j])
-        h = V[: j + 1] @ w  # classical Gram–Schmidt, twice (as stable as modified)
-        w = w - h @ V[: j + 1]
-        h2 = V[: j + 1] @ w
-        w = w - h2 @ V[: j + 1]
-        Hh[: j + 1, j] = h + h2
-        h_next = float(np.linalg.norm(w))
-        Hh[j + 1, j] = h_next
-        if h_next > 0.0:
-            V[j + 1] = w / h_next
-        for i in range(j):  # earlier Givens rotations on the new column
-            hi, hj = Hh[i, j], Hh[i + 1, j]
-            Hh[i, j], Hh[i + 1, j] = cs[i] * hi + sn[i] * hj, -sn[i] * hi + cs[i] * hj
-        rad = float(np.hypot(Hh[j, j], Hh[j + 1, j]))
-        cs[j], sn[j] = (1.0, 0.0) if rad == 0.0 else (Hh[j, j] / rad, Hh[j + 1, j] / rad)
-        Hh[j, j], Hh[j + 1, j] = rad, 0.0
-        g[j + 1] = -sn[j] * g[j]
-        g[j] = cs[j] * g[j]
-        if abs(g[j + 1]) <= rtol * beta or h_next == 0.0:
-            break
-    k = j + 1
-    if np.any(np.diag(Hh[:k, :k]) == 0.0):
-        return _Gmres(np.zeros_like(rhs), k, False)
-    y = sla.solve_triangular(Hh[:k, :k], g[:k])
-    return _Gmres(y @ Z[:k], k, bool(abs(g[k]) <= rtol * beta))
-
-
 def krylov_step(
     prob: Problem,
     it: Iterate,
@@ -445,6 +378,7 @@ def krylov_step(
     cut: float,
     ws: Workspace,
     opts: KrylovOptions,
+    threads: int | None = None,
 ) -> Step | None:
     """Newton direction by GMRES on the exact reduced system, base LU as preconditioner.
 
@@ -459,6 +393,7 @@ def krylov_step(
         cut: Absolute singular-value cut of the rigid-body Schur complement.
         ws: The workspace of ``prob.W`` (base LU, cached ``W`` block); updated.
         opts: Tuning.
+        threads: BLAS threads of a large LU (see :func:`fe.contact.dense.lu_threads`).
 
     Returns:
         The Newton step, or None if the reduced matrix is numerically singular.
@@ -491,7 +426,7 @@ def krylov_step(
                 dq, alpha_new = sol.z[:n], it.alpha + sol.z[n:]
                 step = lin.s + (lin.T @ dq).reshape(-1, 3)
                 return Step(step, alpha_new, ws.base.factor, True)
-    factor = factor_jacobian(form_jacobian(ops.W_b, ops.block, lin), lin.keys)
+    factor = factor_jacobian(form_jacobian(ops.W_b, ops.block, lin), lin.keys, threads)
     if factor is None:
         return None
     ws.base, ws.refresh = Base(factor, lin.closed, lin.kind, lin.u), False

@@ -13,13 +13,14 @@ the trial (augmented) force is ``ξ = p - r g`` and the returned traction is
 
     λ_n = max(0, ξ_n),      λ_t = proj_{disc(μ λ_n)}(ξ_t),
 
-which is a return map onto the Coulomb set exactly like an elastic-predictor /
-plastic-corrector material update. The Alart–Curnier complementarity function is
-``C(p, g) = p - λ(p - r g)``; ``C = 0`` is equivalent to Signorini
-(``w_n >= 0, p_n >= 0, w_n p_n = 0``) and Coulomb (``|p_t| <= μ p_n``; ``Δw_t = 0``
-where ``|p_t| < μ p_n``; otherwise ``Δw_t = -γ p_t/|p_t|`` with ``γ >= 0``) for any
-``r > 0``. The disc radius uses the augmented normal force ``μ max(0, ξ_n)``, which
-equals ``μ p_n`` at every solution and makes the open case decouple (λ = 0).
+(``μ`` one coefficient for all points or one per point), which is a return map onto
+the Coulomb set exactly like an elastic-predictor / plastic-corrector material update.
+The Alart–Curnier complementarity function is ``C(p, g) = p - λ(p - r g)``; ``C = 0``
+is equivalent to Signorini (``w_n >= 0, p_n >= 0, w_n p_n = 0``) and Coulomb
+(``|p_t| <= μ p_n``; ``Δw_t = 0`` where ``|p_t| < μ p_n``; otherwise
+``Δw_t = -γ p_t/|p_t|`` with ``γ >= 0``) for any ``r > 0``. The disc radius uses the
+augmented normal force ``μ max(0, ξ_n)``, which equals ``μ p_n`` at every solution and
+makes the open case decouple (λ = 0).
 
 Example:
     >>> import numpy as np
@@ -66,21 +67,24 @@ class CoulombStep(NamedTuple):
     tangent: FloatArray
 
 
-def coulomb_step(gap_increment: FloatArray, p: FloatArray, mu: float, r: FloatArray) -> CoulombStep:
+def coulomb_step(
+    gap_increment: FloatArray, p: FloatArray, mu: float | FloatArray, r: FloatArray
+) -> CoulombStep:
     """Return-map the augmented force onto the Coulomb set (vectorised over points).
 
     Args:
         gap_increment: ``g = (w_n, Δw_t1, Δw_t2)``, shape (m, 3), float64 [mm].
         p: Current contact force, shape (m, 3), float64 [N].
-        mu: Friction coefficient ``μ >= 0``.
+        mu: Friction coefficient ``μ >= 0``, one for all points or shape (m,), float64.
         r: Augmentation per point, shape (m,), float64 [N/mm], all > 0.
 
     Returns:
         Traction, status and tangent; see :class:`CoulombStep`.
     """
     trial = p - r[:, None] * gap_increment  # ξ, (m, 3)
+    mu_pt = per_point(mu, len(p))
     lam_n = np.maximum(trial[:, 0], 0.0)
-    radius = mu * lam_n
+    radius = mu_pt * lam_n
     xi_t = trial[:, 1:]
     norm_t = np.hypot(xi_t[:, 0], xi_t[:, 1])
     closed = lam_n > 0.0
@@ -99,7 +103,7 @@ def coulomb_step(gap_increment: FloatArray, p: FloatArray, mu: float, r: FloatAr
     tangent = np.zeros((len(p), 3, 3))
     tangent[stick] = np.eye(3)
     tangent[slip, 0, 0] = 1.0
-    tangent[slip, 1:, 0] = mu * u[slip]
+    tangent[slip, 1:, 0] = mu_pt[slip, None] * u[slip]
     proj_perp = np.eye(2) - np.einsum("mi,mj->mij", u, u)  # (m, 2, 2)
     tangent[slip, 1:, 1:] = kappa[slip, None, None] * proj_perp[slip]
 
@@ -110,14 +114,14 @@ def coulomb_step(gap_increment: FloatArray, p: FloatArray, mu: float, r: FloatAr
 
 
 def slip_frame(
-    gap_increment: FloatArray, p: FloatArray, mu: float, r: FloatArray
+    gap_increment: FloatArray, p: FloatArray, mu: float | FloatArray, r: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """Return the slip direction ``u = ξ_t/|ξ_t|`` and ratio ``κ = μ max(0, ξ_n)/|ξ_t|``.
 
     Args:
         gap_increment: ``(w_n, Δw_t1, Δw_t2)``, shape (m, 3), float64 [mm].
         p: Contact force, shape (m, 3), float64 [N].
-        mu: Friction coefficient.
+        mu: Friction coefficient, one for all points or shape (m,), float64.
         r: Augmentation, shape (m,), float64 [N/mm].
 
     Returns:
@@ -129,5 +133,16 @@ def slip_frame(
     norm_t = np.hypot(xi_t[:, 0], xi_t[:, 1])
     safe = np.where(norm_t > 0.0, norm_t, 1.0)
     u = np.where(norm_t[:, None] > 0.0, xi_t / safe[:, None], 0.0)
-    kappa = np.where(norm_t > 0.0, mu * np.maximum(trial[:, 0], 0.0) / safe, 0.0)
+    radius = per_point(mu, len(p)) * np.maximum(trial[:, 0], 0.0)
+    kappa = np.where(norm_t > 0.0, radius / safe, 0.0)
     return u, kappa
+
+
+def per_point(mu: float | FloatArray, m: int) -> FloatArray:
+    """Return the friction coefficient of every point, shape (m,), float64 (a read-only view).
+
+    Args:
+        mu: One coefficient for all points, or one per point with shape (m,).
+        m: Number of points.
+    """
+    return np.broadcast_to(np.asarray(mu, dtype=np.float64), (m,))

@@ -6,51 +6,29 @@ active-set linear algebra. Notation and conventions are those of :mod:`fe.contac
 
 from __future__ import annotations
 
-import contextlib
-import os
-import warnings
 from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
-import scipy.linalg as sla
 import scipy.sparse as sp
-from threadpoolctl import threadpool_limits
 
-from cad.errors import ParameterError
-from fe.contact.law import ContactStatus, CoulombStep, coulomb_step, slip_frame
+from fe.contact.dense import LU_THREADED_MIN as LU_THREADED_MIN
+from fe.contact.dense import Factor as Factor
+from fe.contact.dense import _lu_threads_from_env as _lu_threads_from_env
+from fe.contact.dense import factor_jacobian as factor_jacobian
+from fe.contact.dense import lu_threads
+from fe.contact.dense import solve_bordered as solve_bordered
+from fe.contact.law import ContactStatus, CoulombStep, coulomb_step, per_point, slip_frame
 
 FloatArray = npt.NDArray[np.float64]
 
 
-def _lu_threads_from_env() -> int:
-    """``HINGELAB_LU_THREADS`` if set (an integer ≥ 1), else min(2, CPU count)."""
-    raw = os.environ.get("HINGELAB_LU_THREADS")
-    if raw is None:
-        return min(2, os.cpu_count() or 1)
-    try:
-        value = int(raw)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise ParameterError(f"HINGELAB_LU_THREADS must be an integer ≥ 1, got {raw!r}")
-    return value
-
-
-LU_THREADS = _lu_threads_from_env()
-"""BLAS threads for a dense LU of at least ``LU_THREADED_MIN`` unknowns.
-
-Environment ``HINGELAB_LU_THREADS`` overrides it (a sweep with one worker per core sets 1).
-
-The rest of the contact phase runs on ``CycleSettings.blas_threads`` (1): its many
-small products and triangular solves were 3.4× slower with two threads (level 0,
-benchmarks/bench_cycle.py). A large LU is compute-bound and gains: measured on this
-2-core machine, 1 → 2 threads, n = 1000 / 3000 / 6000: 0.045 → 0.037 s, 0.82 → 0.50 s,
-5.3 → 3.1 s."""
-
-LU_THREADED_MIN = 2000
-"""Smallest reduced Jacobian factorised with ``LU_THREADS`` threads."""
+def __getattr__(name: str) -> int:
+    """Keep ``LU_THREADS`` importable: the effective value of :func:`lu_threads` now."""
+    if name == "LU_THREADS":
+        return lu_threads()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class Problem(NamedTuple):
@@ -62,10 +40,12 @@ class Problem(NamedTuple):
         G: Rigid-body map, shape (3m, k), float64 (k may be 0).
         e: Rigid-body load, shape (k,), float64 [N].
         w_t_prev: Previous tangential displacement, shape (m, 2), float64 [mm].
-        mu: Friction coefficient.
+        mu: Friction coefficient, one for all points or shape (m,), float64.
         w_sum: Sum of the entries of ``W`` (its finiteness check, and a fingerprint that
             tells caches keyed by ``W``'s identity whether it changed in place); NaN if
             unknown, which no cache trusts.
+        symmetric: Whether ``W`` is symmetric (products and Jacobians then use its
+            contiguous rows for its columns); else the general products are used.
     """
 
     W: FloatArray
@@ -73,8 +53,9 @@ class Problem(NamedTuple):
     G: FloatArray
     e: FloatArray
     w_t_prev: FloatArray
-    mu: float
+    mu: float | FloatArray
     w_sum: float = float("nan")
+    symmetric: bool = True
 
 
 class Iterate(NamedTuple):
@@ -149,18 +130,19 @@ def evaluate(
     return Iterate(p, alpha, w, g, law, C, eq, merit, rho, Wp)
 
 
-def sparse_product(W: FloatArray, x: FloatArray) -> FloatArray:
-    """Return ``W x`` for symmetric ``W`` from the rows of the points where ``x ≠ 0``.
+def sparse_product(W: FloatArray, x: FloatArray, symmetric: bool = True) -> FloatArray:
+    """Return ``W x`` from the rows (symmetric ``W``) of the points where ``x ≠ 0``.
 
     Args:
-        W: Symmetric matrix, shape (3m, 3m), float64.
+        W: Matrix, shape (3m, 3m), float64.
         x: Per-point vector, shape (m, 3), float64; typically nonzero on few points.
+        symmetric: Whether ``W`` is symmetric (else the plain product is taken).
 
     Returns:
         ``W x`` flattened, shape (3m,), float64.
     """
     support = np.flatnonzero(np.any(x != 0.0, axis=1))
-    if 2 * len(support) > len(x):  # the gather would read most of W anyway
+    if not symmetric or 2 * len(support) > len(x):  # the gather would read most of W anyway
         out: FloatArray = W @ x.ravel()
         return out
     dofs = (3 * support[:, None] + np.arange(3)).ravel()
@@ -175,18 +157,6 @@ def _amax(a: FloatArray) -> float:
 
 def _ratio(num: float, ref: float) -> float:
     return 0.0 if num == 0.0 else num / max(ref, np.finfo(float).tiny)
-
-
-class Factor(NamedTuple):
-    """LU factors of a reduced matrix and the unknown layout they belong to.
-
-    Attributes:
-        keys: Global slot ``3 i + slot`` of every reduced unknown, shape (n_q,), int64.
-        lu: ``scipy.linalg.lu_factor`` output for ``Jᵀ`` (solve with ``trans=1``).
-    """
-
-    keys: npt.NDArray[np.int64]
-    lu: tuple[FloatArray, npt.NDArray[np.int32]]
 
 
 class Step(NamedTuple):
@@ -252,6 +222,7 @@ def newton_step(
     *,
     force_closed: npt.NDArray[np.bool_] | None = None,
     reuse: Factor | None = None,
+    threads: int | None = None,
 ) -> Step | None:
     """Solve the reduced generalised-Newton system by dense LU; None if it is singular.
 
@@ -266,6 +237,7 @@ def newton_step(
         cut: Absolute singular-value cut of the rigid-body Schur complement.
         force_closed: Points to close if open, shape (m,), bool (default none).
         reuse: Factors of an earlier step to reuse when the layout matches.
+        threads: BLAS threads of a large LU (see :func:`fe.contact.dense.lu_threads`).
 
     Returns:
         The full Newton step, or None if the reduced matrix is numerically singular.
@@ -276,7 +248,8 @@ def newton_step(
         factor: Factor | None = reuse
     else:
         all_points = np.arange(len(it.p), dtype=np.int64)
-        factor = factor_jacobian(form_jacobian(prob.W, all_points, lin), lin.keys)
+        J = form_jacobian(prob.W, all_points, lin, symmetric=prob.symmetric)
+        factor = factor_jacobian(J, lin.keys, threads)
     if factor is None:
         return None
     dq, alpha_new = solve_bordered(factor, lin.Jalpha, lin.H, lin.b, lin.h, cut)
@@ -318,9 +291,10 @@ def linearise(
     forced = status == ContactStatus.OPEN
     forced &= np.zeros(len(status), dtype=bool) if force_closed is None else force_closed
     closed = np.flatnonzero((status != ContactStatus.OPEN) | forced)
-    u, kappa = slip_frame(it.g, it.p, prob.mu, r)
-    is_slip = (status[closed] == ContactStatus.SLIP) & (prob.mu > 0.0)
-    is_free = ((status[closed] == ContactStatus.SLIP) & (prob.mu == 0.0)) | forced[closed]
+    mu = per_point(prob.mu, len(status))
+    u, kappa = slip_frame(it.g, it.p, mu, r)
+    is_slip = (status[closed] == ContactStatus.SLIP) & (mu[closed] > 0.0)
+    is_free = ((status[closed] == ContactStatus.SLIP) & (mu[closed] == 0.0)) | forced[closed]
     u_c, kap_c = u[closed], kappa[closed]
     v_c = np.stack([-u_c[:, 1], u_c[:, 0]], axis=1)  # (c, 2), u rotated by +90°
 
@@ -328,13 +302,13 @@ def linearise(
     s[closed] = 0.0
     sl = closed[is_slip]
     u_s, v_s, k_s = u_c[is_slip], v_c[is_slip], kap_c[is_slip]
-    a0 = prob.mu * it.p[sl, 0] - np.sum(it.p[sl, 1:] * u_s, axis=1)
+    a0 = mu[sl] * it.p[sl, 0] - np.sum(it.p[sl, 1:] * u_s, axis=1)
     s[sl, 1:] = a0[:, None] * u_s
     s[closed[is_free], 1:] = -it.p[closed[is_free], 1:]
 
     # Per closed point: columns of T (slot → 3 components) and rows of R, (c, 3, 3).
     t_loc = np.broadcast_to(np.eye(3), (len(closed), 3, 3)).copy()
-    t_loc[is_slip, 1:, 0] = prob.mu * u_s
+    t_loc[is_slip, 1:, 0] = mu[sl, None] * u_s
     t_loc[is_slip, 1:, 1] = v_s
     r_loc = t_loc.transpose(0, 2, 1).copy()
     r_loc[is_slip, 0, 1:] = 0.0
@@ -347,7 +321,7 @@ def linearise(
     # Own targets of the rows: -w_n, -Δw_t (stick), -C_t·v/r (slip, second slot).
     own = -it.g[closed]
     own[is_slip, 1] = -np.sum(it.C[sl, 1:] * v_s, axis=1) / r[sl]
-    Ws = sparse_product(prob.W, s) if w_times is None else w_times(s)  # (3m,)
+    Ws = sparse_product(prob.W, s, prob.symmetric) if w_times is None else w_times(s)  # (3m,)
     Jalpha = R @ prob.G  # (n_q, k)
     b = own[keep] - R @ Ws + Jalpha @ it.alpha
     H = (T.T @ prob.G).T  # (k, n_q)
@@ -362,13 +336,15 @@ def linearise(
     return Linear(closed, keep, kind, u_kind, t_loc, T, R, d, s, b, Jalpha, H, h, keys)
 
 
-def form_jacobian(W_block: FloatArray, block: npt.NDArray[np.int64], lin: Linear) -> FloatArray:
+def form_jacobian(
+    W_block: FloatArray, block: npt.NDArray[np.int64], lin: Linear, *, symmetric: bool = True
+) -> FloatArray:
     """Form ``J = R W T + diag(d)`` densely, shape (n_q, n_q), C-ordered.
 
-    ``W`` is symmetric, so ``W T = (Tᵀ W)ᵀ``: the columns of ``T`` become combinations of
+    For symmetric ``W``, ``W T = (Tᵀ W)ᵀ``: the columns of ``T`` become combinations of
     contiguous rows of ``W``, transposed in cache-sized chunks onto the closed DOFs, and
     ``R`` then combines rows again (column gathers and column assignment on a wide
-    C-ordered array were several times slower).
+    C-ordered array were several times slower). Otherwise ``W T`` is formed directly.
 
     Args:
         W_block: ``W`` restricted to the DOFs of the points ``block`` (rows and columns
@@ -376,6 +352,7 @@ def form_jacobian(W_block: FloatArray, block: npt.NDArray[np.int64], lin: Linear
             ``W`` itself when ``block`` is every point.
         block: Sorted point indices, shape (n_b,), int64; a superset of ``lin.closed``.
         lin: The reduced system.
+        symmetric: Whether ``W`` is symmetric.
 
     Returns:
         The reduced Jacobian.
@@ -383,12 +360,15 @@ def form_jacobian(W_block: FloatArray, block: npt.NDArray[np.int64], lin: Linear
     n_q = len(lin.keys)
     full = len(block) * 3 == lin.T.shape[0]
     T_b = lin.T if full else lin.T[(3 * block[:, None] + np.arange(3)).ravel(), :]
-    t_rows = sp.csr_array(T_b.T)  # (n_q, 3 n_b)
     cols = (3 * np.searchsorted(block, lin.closed)[:, None] + np.arange(3)).ravel()
-    WT = np.empty((len(cols), n_q))  # W T on the closed DOFs, (3c, n_q), C-ordered
-    for i in range(0, n_q, _CHUNK):
-        rows = t_rows[i : i + _CHUNK] @ W_block  # (chunk, 3 n_b): rows of (W T)ᵀ
-        WT[:, i : i + _CHUNK] = (rows if len(cols) == rows.shape[1] else rows[:, cols]).T
+    if symmetric:
+        t_rows = sp.csr_array(T_b.T)  # (n_q, 3 n_b)
+        WT = np.empty((len(cols), n_q))  # W T on the closed DOFs, (3c, n_q), C-ordered
+        for i in range(0, n_q, _CHUNK):
+            rows = t_rows[i : i + _CHUNK] @ W_block  # (chunk, 3 n_b): rows of (W T)ᵀ
+            WT[:, i : i + _CHUNK] = (rows if len(cols) == rows.shape[1] else rows[:, cols]).T
+    else:
+        WT = np.ascontiguousarray((T_b.T @ W_block[cols].T).T)  # (3c, n_q)
     dofs = (3 * lin.closed[:, None] + np.arange(3)).ravel()
     J: FloatArray = lin.R[:, dofs] @ WT  # (n_q, n_q)
     J[np.diag_indices_from(J)] += lin.d
@@ -418,52 +398,3 @@ def _slot_operators(
     T.eliminate_zeros()
     R.eliminate_zeros()
     return T, R
-
-
-def factor_jacobian(J: FloatArray, keys: npt.NDArray[np.int64]) -> Factor | None:
-    """LU-factor ``J`` (destroyed); None if it is numerically singular."""
-    if J.shape[0] == 0:
-        return Factor(keys, (np.zeros((0, 0)), np.zeros(0, dtype=np.int32)))
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", sla.LinAlgWarning)
-        try:
-            # J is C-ordered, so J.T is Fortran-ordered: LAPACK factors Jᵀ in place.
-            threads = (
-                threadpool_limits(limits=LU_THREADS, user_api="blas")
-                if J.shape[0] >= LU_THREADED_MIN and LU_THREADS > 1
-                else contextlib.nullcontext()
-            )
-            with threads:
-                lu = sla.lu_factor(J.T, overwrite_a=True, check_finite=False)
-        except sla.LinAlgWarning:
-            return None
-    diag = np.abs(np.diag(lu[0]))
-    if not np.all(np.isfinite(diag)) or diag.min() <= 1e3 * np.finfo(float).eps * diag.max():
-        return None
-    return Factor(keys, lu)
-
-
-def solve_bordered(
-    factor: Factor,
-    Jalpha: FloatArray,
-    H: FloatArray,
-    b: FloatArray,
-    h: FloatArray,
-    cut: float,
-) -> tuple[FloatArray, FloatArray]:
-    """Solve ``J x + Jα a = b, H x = h`` with min-norm ``a``, J given by its factors.
-
-    Singular values of the k×k Schur complement ``S = H J⁻¹ Jα`` below ``cut`` are
-    treated as zero (undetermined rigid directions get no component of ``a``).
-    """
-    k = Jalpha.shape[1]
-    if len(factor.keys) == 0:
-        return np.zeros(0), np.zeros(k)
-    if k == 0:
-        return sla.lu_solve(factor.lu, b, trans=1, check_finite=False), np.zeros(0)
-    Y = sla.lu_solve(factor.lu, np.column_stack([b, Jalpha]), trans=1, check_finite=False)
-    U, sv, Vt = np.linalg.svd(H @ Y[:, 1:])  # Schur complement S, (k, k)
-    good = sv > max(cut, float(sv[0]) * np.finfo(float).eps * k)
-    coef = (U[:, good].T @ (H @ Y[:, 0] - h)) / sv[good]
-    a = Vt[good].T @ coef
-    return Y[:, 0] - Y[:, 1:] @ a, a

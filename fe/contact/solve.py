@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import dataclasses
 
 import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ConvergenceError, ParameterError
-from fe.contact.krylov import Workspace, krylov_step, workspace_for
+from fe.contact.globalise import RESCUE_FACTORS as RESCUE_FACTORS
+from fe.contact.globalise import newton_loop
+from fe.contact.krylov import workspace_for
 from fe.contact.law import ContactStatus
-from fe.contact.newton import Factor, Iterate, Problem, Step, evaluate, newton_step
+from fe.contact.newton import Iterate, Problem, evaluate
+from fe.contact.proximal import proximal_loop
 from fe.contact.state import (
     ContactSettings,
     ContactState,
@@ -20,27 +23,6 @@ from fe.contact.state import (
 )
 
 FloatArray = npt.NDArray[np.float64]
-
-RESCUE_FACTORS = (0.1, 10.0, 0.01, 100.0, 1e-3, 1e3)
-"""Factors applied in turn to ``r`` when Newton stalls (see module docstring)."""
-
-
-def _line_search(
-    prob: Problem, it: Iterate, step: Step, r: FloatArray, settings: ContactSettings
-) -> Iterate | None:
-    """Armijo backtracking on the merit; None if no step >= min_step decreases it.
-
-    One product ``W dp`` serves every trial: ``W (p + τ dp) = W p + τ W dp``.
-    """
-    W_dp = (prob.W @ step.dp.ravel()).reshape(-1, 3)
-    tau = 1.0
-    while tau >= settings.min_step:
-        alpha = it.alpha + tau * (step.alpha_new - it.alpha)
-        trial = evaluate(prob, it.p + tau * step.dp, alpha, r, it.Wp + tau * W_dp)
-        if trial.merit <= (1.0 - 2.0 * settings.armijo * tau) * it.merit:
-            return trial
-        tau *= 0.5
-    return None
 
 
 def solve_increment(
@@ -78,11 +60,10 @@ def solve_increment(
         ConvergenceError: If ``ρ > tol`` after ``max_iter`` iterations; ``partial``
             holds the last iterate as a ContactState.
     """
-    prob = validate_problem(W, w_free, state_prev, G, e)._replace(mu=settings.mu)
     m, k = state_prev.p.shape[0], state_prev.alpha.shape[0]
+    prob = validate_problem(W, w_free, state_prev, G, e)._replace(mu=settings.mu_per_point(m))
     blocks = np.diagonal(prob.W).reshape(m, 3)
     r_base = settings.r_scale / blocks.mean(axis=1)
-    r = r_base
     col_sq = float(np.max(np.sum(prob.G**2, axis=0))) if k else 0.0
     cut = settings.rigid_rcond * col_sq / float(np.mean(blocks))
     if start is not None:
@@ -95,129 +76,49 @@ def solve_increment(
         p0, a0 = np.array(state_prev.p), np.array(state_prev.alpha)
     else:
         p0, a0 = np.zeros((m, 3)), np.zeros(k)
-    it = evaluate(prob, p0, a0, r)
-    history, rescues, n_factor = [it.rho], 0, 0
-    n_iter, factor = 0, None
-    krylov = settings.linear_solver is LinearSolver.KRYLOV
+    it = evaluate(prob, p0, a0, r_base)
+    rho0 = it.rho
+    krylov = settings.linear_solver is LinearSolver.KRYLOV and prob.symmetric
     ws = workspace_for(prob.W, prob.w_sum) if krylov else None
     gmres_before = 0 if ws is None else ws.gmres_iterations
-    while it.rho > settings.tol:
-        if n_iter == settings.max_iter:
-            partial = ContactState(it.p, it.w, it.law.status, it.alpha)
-            raise ConvergenceError(
-                "contact Newton did not converge",
-                increment=increment,
-                iteration=n_iter,
-                residual=it.rho,
-                partial=partial,
-            )
-        n_iter += 1
-        step, new = _direction(prob, it, r, cut, settings, factor, ws)
-        n_factor += 0 if step is None else step.factorizations
-        if new is None:
-            rescued = _rescue(prob, it, r, r_base, cut, rescues)
-            rescues += 1
-            r, new, factor = rescued.law_r, rescued.iterate, None
-        elif step is not None:
-            fast = new.rho <= settings.chord_rate * it.rho
-            factor = step.step.factor if fast and settings.chord_rate > 0.0 else None
-        it = new
-        history.append(it.rho)
+    run = newton_loop(
+        prob,
+        it,
+        r_base,
+        cut,
+        settings,
+        ws=ws,
+        max_iter=settings.max_iter,
+        tol=settings.tol,
+        stop_on_singular=True,
+    )
+    runs = [run]
+    if run.singular:  # no Newton step exists (rank-deficient W): proximal-point fallback
+        budget = settings.max_iter - run.iterations
+        it = evaluate(prob, run.it.p, run.it.alpha, r_base)
+        runs.append(proximal_loop(prob, it, r_base, cut, settings, settings.proximal, budget))
+    it, n_iter = runs[-1].it, sum(x.iterations for x in runs)
+    history = [rho0, *(rho for x in runs for rho in x.history)]
+    if it.rho > settings.tol:
+        reason = (
+            "; singular step matrix (rank-deficient W), proximal fallback" if run.singular else ""
+        )
+        partial = ContactState(it.p, it.w, it.law.status, it.alpha)
+        raise ConvergenceError(
+            f"contact Newton did not converge{reason}",
+            increment=increment,
+            iteration=n_iter,
+            residual=it.rho,
+            partial=partial,
+        )
+    rescues = sum(x.rescues for x in runs)
+    n_factor = sum(x.factorizations for x in runs)
     n_gmres = 0 if ws is None else ws.gmres_iterations - gmres_before
     if n_iter:  # W p was updated along the steps: report w with an exact product
         Wp = (prob.W @ it.p.ravel()).reshape(-1, 3)
         it = it._replace(w=Wp + (prob.G @ it.alpha).reshape(-1, 3) + prob.w_free, Wp=Wp)
-    return _result(prob, state_prev, it, n_iter, history, rescues, n_factor, n_gmres)
-
-
-class _Direction(NamedTuple):
-    step: Step
-    factorizations: int
-
-
-def _direction(
-    prob: Problem,
-    it: Iterate,
-    r: FloatArray,
-    cut: float,
-    settings: ContactSettings,
-    factor: Factor | None,
-    ws: Workspace | None,
-) -> tuple[_Direction | None, Iterate | None]:
-    """Newton direction and line search; a reused matrix that fails is replaced once.
-
-    Returns the direction (None if the matrix was singular) with the number of LU
-    factorisations it took, and the accepted iterate (None: the line search failed).
-    """
-    if ws is None:
-        step = newton_step(prob, it, r, cut, reuse=factor)
-    else:
-        step = krylov_step(prob, it, r, cut, ws, settings.krylov)
-    new = None if step is None else _line_search(prob, it, step, r, settings)
-    if step is None or not step.reused or new is not None:
-        return (None if step is None else _Direction(step, int(not step.reused))), new
-    # The stale matrix (chord step or preconditioner) was not good enough: refactorise.
-    if ws is None:
-        retry = newton_step(prob, it, r, cut)
-    else:
-        ws.refresh = True
-        retry = krylov_step(prob, it, r, cut, ws, settings.krylov)
-    if retry is None:
-        return None, None
-    return _Direction(retry, 1), _line_search(prob, it, retry, r, settings)
-
-
-class _Rescued(NamedTuple):
-    iterate: Iterate
-    law_r: FloatArray
-
-
-def _rescue(
-    prob: Problem, it: Iterate, r: FloatArray, r_base: FloatArray, cut: float, count: int
-) -> _Rescued:
-    """Leave a stall: alternately a contact predictor (if points are open) and a new r.
-
-    The predictor first moves unbalanced floating bodies rigidly to first contact (see
-    :func:`_approach`) and closes the touching points; without floating bodies it closes
-    every open point. It then takes the full Newton step with those points closed and
-    frictionless. The r change (``r_base`` times the next of ``RESCUE_FACTORS``) keeps the
-    iterate but changes the merit and the active-set path. Neither changes the solution,
-    and the alternation keeps Newton from repeating a cycle.
-    """
-    is_open = it.law.status == ContactStatus.OPEN
-    if count % 2 == 0 and np.any(is_open):
-        approach = _approach(prob, it, is_open)
-        if approach is not None:
-            it, is_open = evaluate(prob, it.p, approach[0], r), approach[1]
-        step = newton_step(prob, it, r, cut, force_closed=is_open)
-        if step is not None:
-            return _Rescued(evaluate(prob, it.p + step.dp, step.alpha_new, r), r)
-    new_r = r_base * RESCUE_FACTORS[(count // 2) % len(RESCUE_FACTORS)]
-    return _Rescued(evaluate(prob, it.p, it.alpha, new_r), new_r)
-
-
-def _approach(
-    prob: Problem, it: Iterate, is_open: npt.NDArray[np.bool_]
-) -> tuple[FloatArray, npt.NDArray[np.bool_]] | None:
-    """Move floating bodies along the unbalanced load until the first open point touches.
-
-    The direction ``d = Gᵀp - e`` is the rigid motion on which the unbalanced external
-    load does positive work; the step is the smallest ``s >= 0`` that closes an open gap,
-    ``w_n + s G_n d = 0``. Returns the moved ``α`` and the touching points, or None if
-    there is no floating body, no unbalance, or no gap closes along ``d``.
-    """
-    if it.eq.size == 0 or not np.any(it.eq):
-        return None
-    rate = (prob.G[0::3] @ it.eq)[is_open]  # d w_n / d s of the open points
-    closing = rate < 0.0
-    if not np.any(closing):
-        return None
-    s = np.full(len(rate), np.inf)
-    s[closing] = np.maximum(it.w[is_open, 0][closing], 0.0) / -rate[closing]
-    s_min = float(s.min())
-    touching = np.zeros(len(is_open), dtype=bool)
-    touching[np.flatnonzero(is_open)[s <= s_min * (1.0 + 1e-9)]] = True
-    return it.alpha + s_min * it.eq, touching
+    result = _result(prob, state_prev, it, n_iter, history, rescues, n_factor, n_gmres)
+    return dataclasses.replace(result, regularised_iterations=n_iter - run.iterations)
 
 
 def _result(

@@ -5,6 +5,8 @@ Conventions are those of :mod:`fe.contact`.
 
 from __future__ import annotations
 
+import threading
+import weakref
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import NamedTuple
@@ -34,11 +36,46 @@ class LinearSolver(Enum):
 
 
 @dataclass(frozen=True)
+class ProximalOptions:
+    """Tuning of the proximal-point fallback (algorithmic only).
+
+    Attributes:
+        eps_start: First ``ε`` relative to ``mean(diag W)``.
+        eps_min: Smallest relative ``ε``.
+        eps_max: Largest relative ``ε`` (inner failures grow it up to this).
+        shrink: Factor on ``ε`` after an inner solve that took at most ``fast_inner``
+            iterations.
+        fast_inner: See ``shrink``.
+        inner_iter: Iteration budget of one inner solve.
+        inner_rate: Inner tolerance relative to the outer ``ρ`` (inexact proximal point).
+    """
+
+    eps_start: float = 1e-2
+    eps_min: float = 1e-10
+    eps_max: float = 1e2
+    shrink: float = 0.1
+    fast_inner: int = 3
+    inner_iter: int = 30
+    inner_rate: float = 1e-2
+
+    def __post_init__(self) -> None:
+        check_range("proximal.eps_min", self.eps_min, 0.0, 1.0, lo_open=True)
+        check_range("proximal.eps_start", self.eps_start, self.eps_min, self.eps_max)
+        check_range("proximal.eps_max", self.eps_max, self.eps_min, float("inf"), hi_open=True)
+        check_range("proximal.shrink", self.shrink, 0.0, 1.0, lo_open=True, hi_open=True)
+        check_range("proximal.fast_inner", self.fast_inner, 1, float("inf"))
+        check_range("proximal.inner_iter", self.inner_iter, 1, float("inf"))
+        check_range("proximal.inner_rate", self.inner_rate, 0.0, 1.0, lo_open=True, hi_open=True)
+
+
+@dataclass(frozen=True)
 class ContactSettings:
     """Options of :func:`solve_increment`.
 
     Attributes:
-        mu: Coulomb friction coefficient, ``>= 0``.
+        mu: Coulomb friction coefficient, ``>= 0``: one for all points, or one per point
+            (a sequence or array of shape (m,), kept as a tuple of floats so that the
+            settings stay hashable; its length is checked against ``W``).
         r_scale: Augmentation factor; point ``i`` uses ``r_i = r_scale / mean(diag W_ii)``
             [N/mm]. Algorithmic only: the converged solution does not depend on it.
         tol: Tolerance on the scaled residual ``ρ`` (module docstring).
@@ -55,9 +92,15 @@ class ContactSettings:
         linear_solver: How the Newton directions are computed (``chord_rate`` applies
             to ``LinearSolver.LU`` only).
         krylov: Tuning of ``LinearSolver.KRYLOV``.
+        lu_threads: BLAS threads of a dense LU of at least
+            ``fe.contact.dense.LU_THREADED_MIN`` unknowns; None: the environment variable
+            ``HINGELAB_LU_THREADS`` read at each call, else min(2, CPU count) (see
+            :func:`fe.contact.dense.lu_threads`).
+        proximal: Tuning of the fallback for singular step matrices
+            (:mod:`fe.contact.proximal`).
     """
 
-    mu: float = 0.0
+    mu: float | tuple[float, ...] | FloatArray = 0.0
     r_scale: float = 1.0
     tol: float = 1e-10
     max_iter: int = 60
@@ -68,9 +111,13 @@ class ContactSettings:
     rigid_rcond: float = 1e-10
     linear_solver: LinearSolver = LinearSolver.KRYLOV
     krylov: KrylovOptions = field(default_factory=KrylovOptions)
+    lu_threads: int | None = None
+    proximal: ProximalOptions = field(default_factory=ProximalOptions)
 
     def __post_init__(self) -> None:
-        check_range("mu", self.mu, 0.0, float("inf"))
+        object.__setattr__(self, "mu", _checked_mu(self.mu))
+        if self.lu_threads is not None:
+            check_range("lu_threads", self.lu_threads, 1, float("inf"))
         check_range("r_scale", self.r_scale, 0.0, float("inf"), lo_open=True, hi_open=True)
         check_range("tol", self.tol, 0.0, 1.0, lo_open=True, hi_open=True)
         check_range("max_iter", self.max_iter, 1, float("inf"))
@@ -78,6 +125,38 @@ class ContactSettings:
         check_range("min_step", self.min_step, 0.0, 1.0, lo_open=True, hi_open=True)
         check_range("chord_rate", self.chord_rate, 0.0, 1.0, hi_open=True)
         check_range("rigid_rcond", self.rigid_rcond, 0.0, 1.0, lo_open=True, hi_open=True)
+
+    def mu_per_point(self, m: int) -> FloatArray:
+        """Return μ of every point, shape (m,), float64.
+
+        Raises:
+            ParameterError: If ``mu`` is per point but not of length ``m``.
+        """
+        if isinstance(self.mu, tuple):
+            if len(self.mu) != m:
+                raise ParameterError(
+                    f"mu must be a scalar or have shape ({m},) (one per point), "
+                    f"got shape ({len(self.mu)},)"
+                )
+            return np.array(self.mu, dtype=np.float64)
+        return np.full(m, float(self.mu))
+
+
+def _checked_mu(mu: object) -> float | tuple[float, ...]:
+    """Return ``mu`` as a float or a tuple of floats, each checked to be in [0, inf)."""
+    arr = np.asarray(mu, dtype=np.float64) if not isinstance(mu, str) else np.array(np.nan)
+    if arr.ndim == 0:
+        check_range("mu", float(arr), 0.0, float("inf"))
+        return float(arr)
+    if arr.ndim != 1 or arr.size == 0:
+        raise ParameterError(
+            f"mu must be a scalar or a 1-D array (one per point), got shape {arr.shape}"
+        )
+    bad = ~(np.isfinite(arr) & (arr >= 0.0))
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        raise ParameterError(f"mu must be in [0, inf) at every point, got {arr[i]} at point {i}")
+    return tuple(float(x) for x in arr)
 
 
 def _frozen(
@@ -151,6 +230,8 @@ class IncrementResult:
         rescues: How many rescues (predictor or ``r`` change) were needed.
         factorizations: LU factorisations done (iterations minus chord and Krylov steps).
         linear_iterations: GMRES iterations done (``LinearSolver.KRYLOV``).
+        regularised_iterations: Iterations of the proximal-point fallback (included in
+            ``iterations``); nonzero only where a step matrix was singular.
     """
 
     state: ContactState
@@ -165,6 +246,7 @@ class IncrementResult:
     rescues: int
     factorizations: int
     linear_iterations: int = 0
+    regularised_iterations: int = 0
 
 
 def validate_problem(
@@ -206,7 +288,45 @@ def validate_problem(
             f"G and e must have shapes {(3 * m, k)} and {(k,)} (k from state_prev.alpha), "
             f"got {G_arr.shape} and {e_arr.shape}"
         )
-    return Problem(W, w_free, G_arr, e_arr, np.array(state_prev.w[:, 1:]), 0.0, w_sum)
+    w_t_prev = np.array(state_prev.w[:, 1:])
+    return Problem(W, w_free, G_arr, e_arr, w_t_prev, 0.0, w_sum, is_symmetric(W, w_sum))
+
+
+SYMMETRY_RTOL = 1e-10
+"""``W`` counts as symmetric if ``max|W - Wᵀ| <= SYMMETRY_RTOL max|W|`` (the hinge's
+condensed ``W`` is symmetric to round-off; rigid-body sets with friction-dependent
+impulses are not)."""
+
+_SYMMETRY: dict[int, tuple[weakref.ref[FloatArray], float, bool]] = {}
+_SYMMETRY_LOCK = threading.Lock()
+
+
+def is_symmetric(W: FloatArray, w_sum: float = float("nan")) -> bool:
+    """Whether ``W`` is symmetric to ``SYMMETRY_RTOL``, remembered while ``W`` lives.
+
+    The check reads ``W`` once (by blocks); the answer is reused for the same array while
+    its fingerprint ``w_sum`` (``Problem.w_sum``; NaN: unknown, never reused) is unchanged,
+    so the increments of a cycle on one ``W`` pay for it once.
+
+    Args:
+        W: Square matrix, shape (n, n), float64.
+        w_sum: Sum of its entries.
+    """
+    key = id(W)
+    with _SYMMETRY_LOCK:
+        entry = _SYMMETRY.get(key)
+    if entry is not None and entry[0]() is W and entry[1] == w_sum:
+        return entry[2]
+    n, block, worst, scale = W.shape[0], 512, 0.0, 0.0
+    for i in range(0, n, block):
+        upper, lower = W[i : i + block, i:], W[i:, i : i + block]
+        worst = max(worst, float(np.max(np.abs(upper - lower.T), initial=0.0)))
+        scale = max(scale, float(np.max(np.abs(upper), initial=0.0)))
+        scale = max(scale, float(np.max(np.abs(lower), initial=0.0)))
+    symmetric = worst <= SYMMETRY_RTOL * scale
+    with _SYMMETRY_LOCK:
+        _SYMMETRY[key] = (weakref.ref(W, lambda _r: _SYMMETRY.pop(key, None)), w_sum, symmetric)
+    return symmetric
 
 
 class Complementarity(NamedTuple):
@@ -251,8 +371,8 @@ def complementarity(
     """
     k = state_prev.alpha.shape[0]
     e = None if G is None else np.zeros(k)
-    prob = validate_problem(W, w_free, state_prev, G, e)._replace(mu=settings.mu)
     m = p.shape[0]
+    prob = validate_problem(W, w_free, state_prev, G, e)._replace(mu=settings.mu_per_point(m))
     r = settings.r_scale / np.diagonal(prob.W).reshape(m, 3).mean(axis=1)
     a = np.zeros(k) if alpha is None else np.asarray(alpha, dtype=np.float64)
     it = evaluate(prob, np.asarray(p, dtype=np.float64), a, r)

@@ -1,0 +1,139 @@
+"""Dense linear algebra of the Newton steps: LU of a reduced Jacobian and bordered solves.
+
+Internal to :mod:`fe.contact` (notation of :mod:`fe.contact.newton`). Also holds the rule
+for the BLAS threads of a large LU (:func:`lu_threads`), read at every call so that a
+setting or the ``HINGELAB_LU_THREADS`` environment variable takes effect without a
+re-import.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import warnings
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+import scipy.linalg as sla
+from threadpoolctl import threadpool_limits
+
+from cad.errors import ParameterError
+
+FloatArray = npt.NDArray[np.float64]
+
+LU_THREADS_ENV = "HINGELAB_LU_THREADS"
+"""Environment variable that sets the LU threads when the setting is None."""
+
+LU_THREADED_MIN = 2000
+"""Smallest reduced Jacobian factorised with :func:`lu_threads` threads.
+
+The rest of the contact phase runs on ``CycleSettings.blas_threads`` (1): its many
+small products and triangular solves were 3.4× slower with two threads (level 0,
+benchmarks/bench_cycle.py). A large LU is compute-bound and gains: measured on this
+2-core machine, 1 → 2 threads, n = 1000 / 3000 / 6000: 0.045 → 0.037 s, 0.82 → 0.50 s,
+5.3 → 3.1 s."""
+
+
+def _lu_threads_from_env() -> int:
+    """``HINGELAB_LU_THREADS`` if set (an integer ≥ 1), else min(2, CPU count)."""
+    raw = os.environ.get(LU_THREADS_ENV)
+    if raw is None:
+        return min(2, os.cpu_count() or 1)
+    try:
+        value = int(raw)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise ParameterError(f"{LU_THREADS_ENV} must be an integer ≥ 1, got {raw!r}")
+    return value
+
+
+def lu_threads(setting: int | None = None) -> int:
+    """Return the BLAS threads of a dense LU of at least ``LU_THREADED_MIN`` unknowns.
+
+    Args:
+        setting: ``ContactSettings.lu_threads``; None means the environment variable
+            ``HINGELAB_LU_THREADS`` read now (a sweep with one worker per core sets 1),
+            else min(2, CPU count).
+
+    Returns:
+        The effective thread count (≥ 1).
+
+    Raises:
+        ParameterError: If the environment variable is not an integer ≥ 1.
+    """
+    return _lu_threads_from_env() if setting is None else setting
+
+
+class Factor(NamedTuple):
+    """LU factors of a reduced matrix and the unknown layout they belong to.
+
+    Attributes:
+        keys: Global slot ``3 i + slot`` of every reduced unknown, shape (n_q,), int64.
+        lu: ``scipy.linalg.lu_factor`` output for ``Jᵀ`` (solve with ``trans=1``).
+    """
+
+    keys: npt.NDArray[np.int64]
+    lu: tuple[FloatArray, npt.NDArray[np.int32]]
+
+
+def factor_jacobian(
+    J: FloatArray, keys: npt.NDArray[np.int64], threads: int | None = None
+) -> Factor | None:
+    """LU-factor ``J`` (destroyed); None if it is numerically singular.
+
+    Args:
+        J: Square matrix, shape (n, n), float64, C-ordered; overwritten.
+        keys: Unknown layout stored with the factors, shape (n,), int64.
+        threads: BLAS threads if ``n >= LU_THREADED_MIN`` (None: :func:`lu_threads`).
+
+    Returns:
+        The factors, or None if a pivot is below ``1e3 ε`` times the largest.
+    """
+    if J.shape[0] == 0:
+        return Factor(keys, (np.zeros((0, 0)), np.zeros(0, dtype=np.int32)))
+    n_threads = lu_threads(threads) if J.shape[0] >= LU_THREADED_MIN else 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sla.LinAlgWarning)
+        try:
+            # J is C-ordered, so J.T is Fortran-ordered: LAPACK factors Jᵀ in place.
+            limit = (
+                threadpool_limits(limits=n_threads, user_api="blas")
+                if n_threads > 1
+                else contextlib.nullcontext()
+            )
+            with limit:
+                lu = sla.lu_factor(J.T, overwrite_a=True, check_finite=False)
+        except sla.LinAlgWarning:
+            return None
+    diag = np.abs(np.diag(lu[0]))
+    if not np.all(np.isfinite(diag)) or diag.min() <= 1e3 * np.finfo(float).eps * diag.max():
+        return None
+    return Factor(keys, lu)
+
+
+def solve_bordered(
+    factor: Factor,
+    Jalpha: FloatArray,
+    H: FloatArray,
+    b: FloatArray,
+    h: FloatArray,
+    cut: float,
+) -> tuple[FloatArray, FloatArray]:
+    """Solve ``J x + Jα a = b, H x = h`` with min-norm ``a``, J given by its factors.
+
+    Singular values of the k×k Schur complement ``S = H J⁻¹ Jα`` below ``cut`` are
+    treated as zero (undetermined rigid directions get no component of ``a``).
+    """
+    k = Jalpha.shape[1]
+    if len(factor.keys) == 0:
+        return np.zeros(0), np.zeros(k)
+    if k == 0:
+        return sla.lu_solve(factor.lu, b, trans=1, check_finite=False), np.zeros(0)
+    Y = sla.lu_solve(factor.lu, np.column_stack([b, Jalpha]), trans=1, check_finite=False)
+    U, sv, Vt = np.linalg.svd(H @ Y[:, 1:])  # Schur complement S, (k, k)
+    good = sv > max(cut, float(sv[0]) * np.finfo(float).eps * k)
+    coef = (U[:, good].T @ (H @ Y[:, 0] - h)) / sv[good]
+    a = Vt[good].T @ coef
+    return Y[:, 0] - Y[:, 1:] @ a, a

@@ -1,0 +1,164 @@
+"""Robustness on public frictional-contact problems (FCLib / Siconos test data).
+
+The problems in ``tests/fe/data/fclib`` (see the README there) are small copies of
+``../shared/peers/fclib``: three rigid-body sets whose Delassus operator ``W`` is rank
+deficient (every Newton step of the active-set method is singular; the proximal fallback
+has to solve them) and one deformable set that the fast path solves. The check is
+Siconos' error measure (``fc3d_compute_error``), computed here from scratch and not from
+the solver's own residual. The mapping is exact: FCLib's ``u = W r + q`` with ``r_n >= 0``
+compressive and ``u_n >= 0`` separating is ``w = W p + w_free`` with ``w_t_prev = 0``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cad.errors import ConvergenceError, ParameterError
+from fe.contact import ContactSettings, ContactState, solve_increment
+from fe.contact.law import coulomb_step
+
+DATA = Path(__file__).parent / "data" / "fclib"
+SOLVED = 1e-8  # "solved" in the peers' table
+MAX_ITER = 200
+
+
+def load(name):
+    with np.load(DATA / f"{name}.npz") as d:
+        return d["W"], d["q"], d["mu"]
+
+
+def project_cone(x, mu):
+    """Euclidean projection of each row (n, t1, t2) onto {|x_t| <= mu x_n}."""
+    xn, xt = x[:, 0], x[:, 1:]
+    nt = np.hypot(xt[:, 0], xt[:, 1])
+    out = x.copy()
+    polar = mu * nt <= -xn
+    side = ~(nt <= mu * xn) & ~polar
+    rn = (mu * nt + xn) / (1.0 + mu**2)
+    out[polar] = 0.0
+    out[side, 0] = rn[side]
+    out[side, 1:] = (mu * rn / np.where(nt > 0, nt, 1.0))[side, None] * xt[side]
+    return out
+
+
+def fclib_error(W, q, mu, r):
+    """Siconos fc3d_compute_error: |r - P_K(r - (u + mu|u_T| e_n))| / max(|q|, |r|, |u|)."""
+    u = (W @ r.ravel() + q).reshape(-1, 3)
+    u_mod = u.copy()
+    u_mod[:, 0] += mu * np.hypot(u[:, 1], u[:, 2])
+    res = r - project_cone(r - u_mod, mu)
+    scale = max(np.linalg.norm(q), np.linalg.norm(r), np.linalg.norm(u))
+    return np.linalg.norm(res) / scale
+
+
+def test_error_measure_detects_a_wrong_answer():
+    # the measure itself must be able to fail: the zero force and a perturbed solution
+    W, q, mu = load("Confeti-ex03")
+    m = len(mu)
+    res = solve_increment(W, q.reshape(m, 3), ContactState.initial(m), ContactSettings(mu=mu))
+    assert fclib_error(W, q, mu, res.state.p) <= SOLVED
+    assert fclib_error(W, q, mu, np.zeros((m, 3))) > 1e-2
+    assert fclib_error(W, q, mu, 1.01 * res.state.p) > 10 * SOLVED
+
+
+@pytest.mark.parametrize(
+    ("name", "rank_deficient"),
+    [
+        ("BoxesStack1-i100000-32", True),
+        ("LMGC-100_PR_PerioBox-i00361", True),
+        ("Box_Stacks-i0122-82", True),
+        ("Confeti-ex03", False),
+    ],
+    ids=["BoxesStack1", "PerioBox-per-point-mu", "Box_Stacks", "Confeti-ex03"],
+)
+def test_peer_problem_is_solved_from_zero(name, rank_deficient):
+    W, q, mu = load(name)
+    m = len(mu)
+    settings = ContactSettings(mu=mu, max_iter=MAX_ITER)
+    res = solve_increment(W, q.reshape(m, 3), ContactState.initial(m), settings)
+    assert fclib_error(W, q, mu, res.state.p) <= SOLVED
+    assert res.iterations <= MAX_ITER
+    # the fallback runs exactly where the fast path has no Newton step
+    assert (res.regularised_iterations > 0) == rank_deficient
+
+
+def test_per_point_mu_is_the_pointwise_law():
+    rng = np.random.default_rng(3)
+    m = 6
+    g = rng.normal(size=(m, 3))
+    p = rng.normal(size=(m, 3)) + np.array([1.0, 0.0, 0.0])
+    r = rng.uniform(0.5, 2.0, m)
+    mu = rng.uniform(0.0, 0.8, m)
+    mu[0] = 0.0
+    step = coulomb_step(g, p, mu, r)
+    for i in range(m):
+        one = coulomb_step(g[i : i + 1], p[i : i + 1], float(mu[i]), r[i : i + 1])
+        np.testing.assert_array_equal(step.traction[i], one.traction[0])
+        np.testing.assert_array_equal(step.tangent[i], one.tangent[0])
+        assert step.status[i] == one.status[0]
+
+
+def test_uniform_per_point_mu_equals_the_scalar():
+    W, q, mu = load("Confeti-ex03")
+    m = len(mu)
+    w_free, st = q.reshape(m, 3), ContactState.initial(m)
+    a = solve_increment(W, w_free, st, ContactSettings(mu=float(mu[0])))
+    b = solve_increment(W, w_free, st, ContactSettings(mu=np.full(m, mu[0])))
+    np.testing.assert_array_equal(a.state.p, b.state.p)
+
+
+@pytest.mark.parametrize(
+    ("mu", "match"),
+    [
+        (np.array([0.3, -0.1]), r"mu must be in \[0, inf\) at every point, got -0.1 at point 1"),
+        (np.array([0.3, np.nan]), "mu must be in"),
+        (np.zeros((2, 2)), r"mu must be a scalar or a 1-D array .* got shape \(2, 2\)"),
+        (-0.2, "mu must be"),
+    ],
+    ids=["negative", "nan", "2-D", "negative-scalar"],
+)
+def test_bad_mu_is_rejected_by_name(mu, match):
+    with pytest.raises(ParameterError, match=match):
+        ContactSettings(mu=mu)
+
+
+def test_per_point_mu_of_the_wrong_length_names_the_shape():
+    settings = ContactSettings(mu=[0.1, 0.2, 0.3])
+    with pytest.raises(ParameterError, match=r"mu must be a scalar or have shape \(2,\)"):
+        solve_increment(np.eye(6), np.zeros((2, 3)), ContactState.initial(2), settings)
+
+
+def test_settings_with_per_point_mu_stay_hashable():
+    a, b = ContactSettings(mu=np.array([0.1, 0.2])), ContactSettings(mu=[0.1, 0.2])
+    assert a == b
+    assert hash(a) == hash(b)
+
+
+def test_nonsymmetric_W_is_solved_exactly():
+    # rigid-body sets with friction-dependent impulses give W ≠ Wᵀ (Capsules, RockPile):
+    # the products and Jacobians must not assume symmetry
+    rng = np.random.default_rng(11)
+    m = 8
+    A = rng.normal(size=(3 * m, 3 * m))
+    W = A @ A.T / (3 * m) + np.eye(3 * m) + 0.05 * rng.normal(size=(3 * m, 3 * m))
+    q = rng.normal(size=3 * m)
+    q[0::3] -= 1.0
+    mu = np.full(m, 0.4)
+    res = solve_increment(W, q.reshape(m, 3), ContactState.initial(m), ContactSettings(mu=mu))
+    assert fclib_error(W, q, mu, res.state.p) <= SOLVED
+    assert res.n_slip + res.n_stick > 0
+
+
+def test_infeasible_rank_deficient_problem_raises_with_the_reason():
+    # two points whose normal rows of W are opposite: w_n1 + w_n2 = q_n1 + q_n2 = -2 < 0
+    # for every force, so no solution exists and no Newton step either
+    W = np.eye(6)
+    W[0, 0] = W[3, 3] = 1.0
+    W[0, 3] = W[3, 0] = -1.0
+    w_free = np.array([[-1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    with pytest.raises(ConvergenceError, match="singular step matrix") as err:
+        solve_increment(W, w_free, ContactState.initial(2), ContactSettings(mu=0.3, max_iter=40))
+    assert err.value.iteration == 40
