@@ -188,6 +188,9 @@ class Diagnosis:
     separating_test: str | None
     stats: Mapping[str, float]
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "verdict", Verdict(self.verdict))  # also from its word
+
     def to_dict(self) -> dict[str, Any]:
         """Return a JSON-ready dict."""
         return {
