@@ -12,6 +12,7 @@ Information panel lists what each code is and one can threshold by part or set.
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from pathlib import Path
 
 import meshio
@@ -67,8 +68,7 @@ def write_vtu(mesh: HexMesh, path: Path) -> Path:
     del m.cell_data["gmsh:physical"], m.cell_data["gmsh:geometrical"]
     m.field_data = {}
     meshio.write(path, m, file_format="vtu", binary=True)
-    _add_field_data(path, vtu_name_codes(mesh))
-    return path
+    return add_vtu_field_data(path, vtu_name_codes(mesh))
 
 
 def vtu_name_codes(mesh: HexMesh) -> dict[str, int]:
@@ -77,26 +77,40 @@ def vtu_name_codes(mesh: HexMesh) -> dict[str, int]:
     return codes | {f"set:{s}": i for i, s in enumerate(sorted(mesh.facet_sets))}
 
 
-def _add_field_data(path: Path, codes: dict[str, int]) -> None:
-    """Insert a VTK ``<FieldData>`` block of one-value Int64 arrays into a .vtu file.
+def add_vtu_field_data(path: Path, values: Mapping[str, int | float]) -> Path:
+    """Insert a VTK ``<FieldData>`` block of one-value arrays into a .vtu file; return it.
 
     meshio reads FieldData from .vtu files but does not write it, so it is added to the
-    XML here (ASCII arrays, which every VTK reader and meshio accept).
+    XML here (ASCII arrays, which every VTK reader and meshio accept): Int64 for ints,
+    Float64 for floats. Use it for names of codes (``vtu_name_codes``) or for per-file
+    scalars of a time series (the load of an increment).
+
+    Raises:
+        MeshQualityError: If the file is not a VTK UnstructuredGrid.
     """
     tree = ET.parse(path)
     grid = tree.getroot().find("UnstructuredGrid")
     if grid is None:
-        raise MeshQualityError(f"{path}: no UnstructuredGrid element to add names to")
-    block = ET.Element("FieldData")
-    for name, code in codes.items():
+        raise MeshQualityError(f"{path}: no UnstructuredGrid element to add field data to")
+    block = grid.find("FieldData")
+    if block is None:
+        block = ET.Element("FieldData")
+        grid.insert(0, block)
+    for name, value in values.items():
+        is_int = isinstance(value, int | np.integer)
         arr = ET.SubElement(
             block,
             "DataArray",
-            {"type": "Int64", "Name": name, "NumberOfTuples": "1", "format": "ascii"},
+            {
+                "type": "Int64" if is_int else "Float64",
+                "Name": name,
+                "NumberOfTuples": "1",
+                "format": "ascii",
+            },
         )
-        arr.text = str(code)
-    grid.insert(0, block)
+        arr.text = str(int(value)) if is_int else repr(float(value))
     tree.write(path, xml_declaration=True, encoding="utf-8")
+    return path
 
 
 def read_msh_summary(path: Path) -> dict[str, object]:

@@ -64,3 +64,17 @@ def test_vtu_names_its_part_and_set_codes(mesh, tmp_path):
     set_code = np.concatenate(m.cell_data["set"])[mesh.n_elem :]
     sizes = {s: int((set_code == names[f"set:{s}"]).sum()) for s in mesh.facet_sets}
     assert sizes == {s: len(f) for s, f in mesh.facet_sets.items()}
+
+
+def test_field_data_of_a_series_frame(tmp_path):
+    """A time-series frame can carry its load: ints stay ints, floats round-trip exactly."""
+    from mesh.io import add_vtu_field_data
+    from tests.helpers import box_mesh
+
+    path = write_vtu(box_mesh(1.0, 1.0, 1.0, 1, 1, 1), tmp_path / "f.vtu")
+    add_vtu_field_data(path, {"force_N": -123.456789012345, "stage": 2})
+    m = meshio.read(path)
+    assert float(m.field_data["force_N"][0]) == -123.456789012345
+    assert m.field_data["stage"].dtype.kind == "i"
+    assert int(m.field_data["stage"][0]) == 2
+    assert "part:block" in m.field_data
