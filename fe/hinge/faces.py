@@ -278,7 +278,7 @@ class ClampedFaces:
     wall_s: float
 
 
-_CALIBRATIONS: dict[tuple[int, int, float, float, int, float], tuple[Extended, float]] = {}
+_CALIBRATIONS: dict[tuple[object, ...], tuple[Extended, float]] = {}
 """(system, configuration, μ, tol, max_iter, footprint) → (extension at the unit overlap, force
 per face); dropped when the configuration is (``weakref.finalize``)."""
 
@@ -291,7 +291,8 @@ def _calibrated_extension(
     Neither depends on the clamp force, so a fit that tries many clamp values (or a run at
     many amplitudes) condenses and calibrates once per configuration and μ.
     """
-    key = (id(system), id(cond), contact.mu, contact.tol, contact.max_iter, radius_ratio)
+    mu_key = tuple(np.ravel(contact.mu).tolist())  # a scalar or per-point μ, hashable
+    key = (id(system), id(cond), mu_key, contact.tol, contact.max_iter, radius_ratio)
     if key not in _CALIBRATIONS:
         geo = face_geometry(system.mesh, radius_ratio)
         unit = np.zeros((len(geo.slave), 3))
