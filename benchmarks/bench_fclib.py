@@ -2,8 +2,9 @@
 
 Each problem (``W``, ``q``, per-contact ``mu``) is solved from ``p = 0`` by
 ``fe.contact.solve_increment`` with default settings except ``mu`` (per contact, native)
-and ``max_iter = 200``, in a fresh process with a wall-time budget (KaplasTower and
-RockPile are dense 1710/1389-unknown problems). "Solved" is Siconos' error
+and ``max_iter = 200``, on one BLAS thread (as Siconos' column; several threads on
+tiny LUs were 10-60x slower on this shared machine), in a fresh process with a wall-time
+budget (KaplasTower and RockPile are dense 1710/1389-unknown problems). "Solved" is Siconos' error
 (``fc3d_compute_error``, recomputed here from ``W r + q``) ``<= 1e-8``; a problem where
 ``solve_increment`` raised is reported as not solved with the error of its last iterate.
 Siconos' best solver and the project's previous result are read from the README's table.
@@ -53,6 +54,8 @@ def fclib_error(W, q, mu, r):
 
 
 def _solve(path: str, queue: Any) -> None:
+    from threadpoolctl import threadpool_limits
+
     from cad.errors import ConvergenceError
     from fe.contact import ContactSettings, ContactState, solve_increment
 
@@ -62,7 +65,9 @@ def _solve(path: str, queue: Any) -> None:
     settings = ContactSettings(mu=mu, max_iter=MAX_ITER)
     t0 = time.perf_counter()
     try:
-        res = solve_increment(W, q.reshape(m, 3), ContactState.initial(m), settings)
+        # one BLAS thread, as the Siconos column and the hinge's contact phase
+        with threadpool_limits(limits=1, user_api="blas"):
+            res = solve_increment(W, q.reshape(m, 3), ContactState.initial(m), settings)
         p, iters, note = res.state.p, res.iterations, ""
         if res.regularised_iterations:
             note = f"fallback {res.regularised_iterations} its"
@@ -107,7 +112,7 @@ def read_readme(directory: Path) -> dict[str, dict[str, str]]:
     text = (directory / "README.md").read_text()
     for line in text.splitlines():
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if len(cells) != 8 or not re.match(r"^[\w.-]+$", cells[0]) or cells[0] == "problem":
+        if len(cells) != 8 or not re.match(r"^[A-Za-z][\w.-]*$", cells[0]) or cells[0] == "problem":
             continue
         rows[cells[0]] = dict(
             zip(["kind", "contacts", "rank_def", *SICONOS, "before"], cells[1:], strict=True)
