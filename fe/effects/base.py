@@ -16,8 +16,9 @@ import numpy.typing as npt
 
 from cad.errors import ParameterError
 from fe.contact import ContactSettings
+from fe.hinge.condensed import Condensed
 from fe.hinge.cycle import CycleSettings
-from fe.hinge.system import Condensed, HingeSystem
+from fe.hinge.system import HingeSystem
 
 FloatArray = npt.NDArray[np.float64]
 Values = Mapping[str, float]

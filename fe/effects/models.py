@@ -21,8 +21,8 @@ from fe.effects.base import (
     add_diagonal,
     map_configs,
 )
+from fe.hinge.condensed import Condensed
 from fe.hinge.faces import FOOTPRINT_RADIUS_RATIO, clamped_faces
-from fe.hinge.system import Condensed
 
 
 @dataclass(frozen=True)

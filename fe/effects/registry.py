@@ -54,9 +54,10 @@ from fe.effects.models import (
     RoughnessSoftening,
     TangentialCompliance,
 )
+from fe.hinge.condensed import Condensed
 from fe.hinge.cycle import CycleResult, CycleSettings, Increment, configurations, run_cycle
 from fe.hinge.faces import unloaded_state
-from fe.hinge.system import GRIP, Condensed, HingeSystem
+from fe.hinge.system import GRIP, HingeSystem
 
 __all__ = [
     "REGISTRY",

@@ -34,13 +34,13 @@ from threadpoolctl import threadpool_limits
 
 from cad.errors import ConvergenceError, ParameterError, check_range
 from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
+from fe.hinge.condensed import Condensed
 from fe.hinge.geometry import contact_geometry, split_window
 from fe.hinge.protocol import DEFAULT_MU, CycleSettings, stage_targets
 from fe.hinge.result import CycleResult, Increment
 from fe.hinge.system import (
     GRIP,
     N_RIGID,
-    Condensed,
     HingeSystem,
     condense,
     displacements,

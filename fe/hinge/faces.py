@@ -36,13 +36,14 @@ from cad.errors import MeshQualityError, ParameterError
 from cad.surfaces import Cylinder, Plane
 from fe.assembly import dofs_of
 from fe.contact import ContactSettings, ContactState, solve_increment
+from fe.hinge.condensed import Condensed
 from fe.hinge.geometry import (
     ContactGeometry,
     bilinear_weights,
     contact_operator,
     project_on_facets,
 )
-from fe.hinge.system import Condensed, HingeSystem
+from fe.hinge.system import HingeSystem
 from mesh.facets import boundary_facets, select_facets
 from mesh.hexmesh import HexMesh
 

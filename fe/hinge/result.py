@@ -19,8 +19,8 @@ import numpy as np
 import numpy.typing as npt
 
 from fe.contact import ContactState
+from fe.hinge.condensed import Condensed
 from fe.hinge.protocol import CycleSettings
-from fe.hinge.system import Condensed
 
 FloatArray = npt.NDArray[np.float64]
 

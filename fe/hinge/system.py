@@ -51,6 +51,7 @@ from cad.model import PairKind, SurfacePair
 from cad.surfaces import Cylinder
 from fe.assembly import Factorization, assemble_stiffness, dofs_of, inverse_block
 from fe.element import ElementType
+from fe.hinge.condensed import Condensed
 from fe.hinge.geometry import ContactGeometry, contact_operator
 from mesh.hexmesh import HexMesh
 
@@ -367,31 +368,6 @@ def _restricted_inverse(
     return out
 
 
-@dataclass(frozen=True)
-class Condensed:
-    """The hinge condensed on the contact points of one configuration.
-
-    Attributes:
-        geo: The contact points.
-        C: Contact operator, shape (3m, n_dof).
-        W: Delassus operator, shape (3m, 3m) [mm/N].
-        G: Rigid map, shape (3m, 7): pin modes then grip [mm per unit α].
-        w0: Relative displacement at zero force, shape (m, 3) [mm] (normal part g0).
-        wall_s: Condensation time [s].
-        outside: Points outside the contact window (None: no window).
-        C_outside: Their contact operator, shape (3 m_out, n_dof).
-    """
-
-    geo: ContactGeometry
-    C: sp.csr_matrix
-    W: FloatArray
-    G: FloatArray
-    w0: FloatArray
-    wall_s: float
-    outside: ContactGeometry | None = None
-    C_outside: sp.csr_matrix | None = None
-
-
 def _columns(C: sp.csr_matrix, nodes: IntArray) -> sp.csr_matrix:
     """Columns of C at the DOFs of ``nodes``, shape (3m, 3 len(nodes))."""
     return C[:, dofs_of(nodes)]
@@ -423,7 +399,16 @@ def condense(
     w0 = np.column_stack([geo.g0, np.zeros((len(geo.g0), 2))])
     outside = None if excluded is None or len(excluded.slave) == 0 else excluded
     C_out = None if outside is None else contact_operator(outside, system.n_dof)
-    return Condensed(geo, C, W, G, w0, time.perf_counter() - t1, outside, C_out)
+    return Condensed(
+        geo=geo,
+        C=C,
+        W=W,
+        w0=w0,
+        wall_s=time.perf_counter() - t1,
+        G=G,
+        outside=outside,
+        C_outside=C_out,
+    )
 
 
 def displacement(

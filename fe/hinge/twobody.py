@@ -50,6 +50,7 @@ import scipy.sparse as sp
 from cad.errors import MeshQualityError, ParameterError
 from fe.assembly import Factorization, assemble_stiffness
 from fe.element import ElementType
+from fe.hinge.condensed import Condensed
 from fe.hinge.geometry import (
     ContactGeometry,
     bilinear_weights,
@@ -224,32 +225,6 @@ def two_body_geometry(
     )
 
 
-@dataclass(frozen=True)
-class Condensed:
-    """The system condensed on the contact points of one configuration.
-
-    Attributes:
-        geo: The contact points (m of them).
-        C: Contact operator on all DOFs, shape (3m, n_dof), CSR: local relative
-            displacement (slave − master) in frames [n, t1, t2].
-        W: Delassus operator ``C_f K_ff⁻¹ C_fᵀ``, shape (3m, 3m), float64 [mm/N],
-            with locked directions set to ``locked_compliance`` on the diagonal.
-        w0: Relative displacement of the undeformed configuration, shape (m, 3) [mm]
-            (``g0`` in the normal column, zeros elsewhere).
-        locked: Directions whose ``C`` row vanishes on the free DOFs, shape (3m,), bool.
-        locked_compliance: Diagonal given to locked directions [mm/N].
-        wall_s: Condensation time [s].
-    """
-
-    geo: ContactGeometry
-    C: sp.csr_matrix
-    W: FloatArray
-    w0: FloatArray
-    locked: npt.NDArray[np.bool_]
-    locked_compliance: float
-    wall_s: float
-
-
 def condense(system: TwoBodySystem, geo: ContactGeometry) -> Condensed:
     """Condense the system on the contact points: ``W = C_f K_ff⁻¹ C_fᵀ``.
 
@@ -288,7 +263,15 @@ def condense(system: TwoBodySystem, geo: ContactGeometry) -> Condensed:
     compliance = float(np.mean(np.diag(W_live)))
     W[locked, locked] = compliance
     w0 = np.column_stack([geo.g0, np.zeros((len(geo.g0), 2))])
-    return Condensed(geo, C, W, w0, locked, compliance, time.perf_counter() - t0)
+    return Condensed(
+        geo=geo,
+        C=C,
+        W=W,
+        w0=w0,
+        wall_s=time.perf_counter() - t0,
+        locked=locked,
+        locked_compliance=compliance,
+    )
 
 
 def external_response(

@@ -28,9 +28,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from cad.errors import HingelabError, ParameterError
+from fe.hinge.condensed import Condensed
 from fe.hinge.cycle import run_cycle
 from fe.hinge.result import CycleResult
-from fe.hinge.system import Condensed, HingeSystem, build_system
+from fe.hinge.system import HingeSystem, build_system
 from fe.service.geometry import MeshedHinge, build_and_mesh
 from fe.service.spec import (
     DesignPoint,
@@ -319,4 +320,3 @@ def design_points(
             p = DesignPoint(amplitude_n=a, clearance_mm=c)
             seen.setdefault((p.clearance_mm, p.amplitude_n), p)
     return list(seen.values())
-

@@ -100,7 +100,9 @@ class ResultStore:
         except (OSError, ValueError, KeyError) as err:
             raise DataError(f"{path}: not a readable hingelab result ({err})") from err
         if meta.get("format") != FORMAT_VERSION or meta.get("key") != key:
-            raise DataError(f"{path}: stored format/key does not match (delete the file to recompute)")
+            raise DataError(
+                f"{path}: stored format/key does not match (delete the file to recompute)"
+            )
         ints = {"stage", "side", "iterations", "n_open", "n_stick", "n_slip"}
         increments = tuple(
             Increment(
