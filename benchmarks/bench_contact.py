@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
 import time
 import tracemalloc
 
@@ -157,7 +158,7 @@ def main() -> None:
         type=int,
         nargs="+",
         default=[contact_newton.LU_THREADS],
-        help="BLAS threads of the large dense LUs (fe.contact.newton.LU_THREADS)",
+        help="BLAS threads of the large dense LUs (HINGELAB_LU_THREADS, fe.contact.dense.lu_threads)",
     )
     args = parser.parse_args()
     print(
@@ -169,7 +170,7 @@ def main() -> None:
         cases, args.threads, args.lu_threads
     ):
         walls = {}
-        contact_newton.LU_THREADS = lu_threads  # a benchmark switch, read at each LU
+        os.environ["HINGELAB_LU_THREADS"] = str(lu_threads)  # read at each LU (fe.contact.dense)
         for solver in (LinearSolver.LU, LinearSolver.KRYLOV):
             with threadpool_limits(limits=threads, user_api="blas"):
                 m, n_inc, iters, n_lu, wall, peak, out = _case(kind, m_target, solver, args)
