@@ -199,8 +199,13 @@ def _rows(values: Iterable[object], per_line: int = _PER_LINE) -> list[str]:
 
 
 def _num(x: float) -> str:
-    """Format a number in at most 19 characters: CalculiX reads fields of 20 at most."""
-    return f"{float(x):.13g}"
+    """Format a number in at most 20 characters, always with a point or an exponent.
+
+    CalculiX reads fields of 20 characters at most, and took a spring constant written
+    as ``50`` for a missing data line (``50.`` is read).
+    """
+    out = f"{float(x):.13g}"
+    return out if any(c in out for c in ".en") else out + "."
 
 
 def _load_axis(face: NamedFace) -> tuple[int, float]:
@@ -406,6 +411,10 @@ def _steps(s: DeckSettings, roles: _Roles, sign: float, dof: int) -> list[str]:
             "*STEP, INC=10000",
             "*STATIC",
             f"{_num(dt)}, 1.0, {_num(dt * 1e-5)}, {_num(dt)}",
+            "** Stick/slip changes need more Newton iterations than the defaults allow before a",
+            "** cut-back: divergence checks from iteration 8, at most 50 iterations, 10 cut-backs.",
+            "*CONTROLS, PARAMETERS=TIME INCREMENTATION",
+            "8, 10, 9, 50, 10, 4, 0, 10",
             "*CLOAD",
             f"{GRIP_REF_SET}, {dof}, {_num(force)}",
             "** Per increment to the .dat file: the grip displacement, and the total reaction of",

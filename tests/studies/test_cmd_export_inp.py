@@ -41,8 +41,8 @@ def test_deck_from_model_file_with_overrides(tmp_path, capsys, model_file):
     assert "*FRICTION\n0.3, " in text
     # With clearance the grip spring's force at the touching configuration (50 N/mm · 2Δr)
     # is added to the *CLOAD, so the hinge carries 300 N.
-    assert "grip_ref, 1, 310\n" in text
-    assert "grip_ref, 1, -310\n" in text
+    assert "grip_ref, 1, 310.\n" in text
+    assert "grip_ref, 1, -310.\n" in text
 
 
 def test_model_file_values_are_the_defaults(tmp_path, capsys, model_file):
@@ -50,7 +50,7 @@ def test_model_file_values_are_the_defaults(tmp_path, capsys, model_file):
     assert main(["export-inp", str(model_file), "--out", str(out)]) == 0
     assert "ccx -i m" in capsys.readouterr().out
     text = out.read_text()
-    assert "grip_ref, 1, 250\n" in text
+    assert "grip_ref, 1, 250.\n" in text
     assert "*FRICTION\n0.15, " in text
 
 
