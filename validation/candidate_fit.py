@@ -38,6 +38,11 @@ class DiagnoseSettings:
         explained_min: Fraction of the excess χ² the best candidate must explain.
         increments_per_stage: Increments per stage of the diagnosis runs (None: model file's).
         clearance_increments: Increments across the free play (None: model file's).
+        power: Detection probability of the sensitivity statement (``diagnose.sensitivity``).
+        tell_rel_error: Without a significant candidate, the verdict is ``cannot_tell``
+            unless the data would detect a common relative error of this size in the loop
+            area / η (default 0.5: an error of a half moves a design across the paper's
+            η = 0.05 boundary over most of its range).
     """
 
     features: FeatureSettings = field(default_factory=FeatureSettings)
@@ -49,6 +54,8 @@ class DiagnoseSettings:
     explained_min: float = 0.9
     increments_per_stage: int | None = 8
     clearance_increments: int | None = 16
+    power: float = 0.8
+    tell_rel_error: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -64,12 +71,26 @@ class MeasuredFeatures:
         values: Features, shape (n_points, 3) (η-only rows: [NaN, η, NaN]).
         sigma: Their σ, shape (n_points, 3).
         eta_only: Rows measured by η only, shape (n_points,).
+        max_rel_sigma: Features with σ > max_rel_sigma·|value| are uninformative
+            (``FeatureSettings.max_rel_sigma``); inf keeps every finite feature.
     """
 
     points: tuple[tuple[float, float], ...]
     values: FloatArray
     sigma: FloatArray
     eta_only: npt.NDArray[np.bool_] | None = None
+    max_rel_sigma: float = math.inf
+
+    @property
+    def informative(self) -> npt.NDArray[np.bool_]:
+        """Features that enter χ² and N, shape (n_points, 3), bool.
+
+        A feature is informative when it and its σ are finite and σ ≤ max_rel_sigma·|value|.
+        """
+        with np.errstate(invalid="ignore"):
+            finite = np.isfinite(self.values) & np.isfinite(self.sigma) & (self.sigma > 0)
+            ok = finite & (self.sigma <= self.max_rel_sigma * np.abs(self.values))
+        return np.asarray(ok, dtype=bool)
 
     @property
     def amplitudes(self) -> FloatArray:
@@ -85,9 +106,8 @@ class MeasuredFeatures:
 
     @property
     def n_obs(self) -> int:
-        """Number of observations N: three per loop, one per η-only design point."""
-        k = int(np.count_nonzero(self.eta_rows))
-        return 3 * (len(self.points) - k) + k
+        """Number of observations N: the informative features (≤ 3 per loop, ≤ 1 per η row)."""
+        return int(np.count_nonzero(self.informative))
 
 
 def measured_features(data: MeasurementSet, settings: FeatureSettings) -> MeasuredFeatures:
@@ -133,7 +153,11 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
         else:
             points.pop()
     return MeasuredFeatures(
-        tuple(points), np.array(values), np.array(sigmas), np.array(eta_only, dtype=bool)
+        tuple(points),
+        np.array(values),
+        np.array(sigmas),
+        np.array(eta_only, dtype=bool),
+        settings.max_rel_sigma,
     )
 
 
@@ -152,7 +176,8 @@ def _eta_without_free_play(model: FloatArray, meas: MeasuredFeatures) -> FloatAr
 def residuals(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:
     """Return (model − measured)/σ, shape (n_points, 3); a failed run (NaN) counts 1e3.
 
-    η-only rows: ``[0, (η_model − η)/σ_η, 0]``.
+    η-only rows: ``[0, (η_model − η)/σ_η, 0]``. Uninformative features
+    (``MeasuredFeatures.informative``) count 0.
     """
     model = np.asarray(model, dtype=np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -163,7 +188,8 @@ def residuals(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:
             r_eta = (eta_model - meas.values[eta_rows, 1]) / meas.sigma[eta_rows, 1]
             r[eta_rows] = 0.0
             r[eta_rows, 1] = r_eta
-    return np.where(np.isfinite(r), r, 1e3)
+    r = np.where(np.isfinite(r), r, 1e3)
+    return np.where(meas.informative, r, 0.0)
 
 
 def chi2(

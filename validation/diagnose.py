@@ -4,7 +4,8 @@ Workflow (``diagnose``):
 
 1. **Features** (``validation.features``): each measured design point becomes three
    numbers, δ_max, W_cycle and the opening at ½Fg, with σ from noise, model floor and replicates; the
-   residual is ``r = (model − measured)/σ``, N = 3 × design points. Features instead of
+   residual is ``r = (model − measured)/σ``; N counts the informative features (a feature
+   whose σ exceeds ``FeatureSettings.max_rel_sigma`` times its value is left out). Features instead of
    loop points sidestep the strong correlation of residuals along a loop. A design point
    measured by η only (an η-only table, like the paper's Table 1) is one observation,
    its η (``MeasuredFeatures``); with such data two candidates that change η alike are
@@ -30,8 +31,11 @@ Workflow (``diagnose``):
    * *bounds*: a parameter at the end of its grid is flagged (``at_bound``);
    * AIC = χ² + 2k and BIC = χ² + k ln N are reported.
 
-5. **Verdict**: baseline consistent with noise (χ²₀ ≤ the χ²_N quantile ``1 − alpha``)
-   and no significant candidate → ``no_missing_effect``; the best significant candidate
+5. **Verdict**: no significant candidate and data that could not detect a common
+   relative error of ``tell_rel_error`` in the loop area / η (``sensitivity``: power
+   ``power`` at ``alpha``) → ``cannot_tell``; baseline consistent with noise (χ²₀ ≤ the
+   χ²_N quantile ``1 − alpha``) and no significant candidate → ``no_missing_effect``,
+   with the smallest errors the data would have detected; the best significant candidate
    explains at least ``explained_min`` of the excess χ²₀ − N → ``effect_missing`` (unless
    another one fits equally well, Δχ² below the 1-dof quantile ``1 − alpha`` scaled as
    above → ``indistinguishable``, with the design point where the two fitted models differ
@@ -40,6 +44,7 @@ Workflow (``diagnose``):
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 from collections.abc import Mapping
@@ -138,7 +143,28 @@ def residual_pattern(model: FloatArray, meas: MeasuredFeatures) -> list[str]:
             if abs(by_c[cs[-1]] - by_c[cs[0]]) > 2 * float(np.mean(s)):
                 trend = "grows" if by_c[cs[-1]] > by_c[cs[0]] else "shrinks"
                 words.append(f"{label} error {trend} with clearance")
-    return words or ["no systematic pattern beyond the noise"]
+    return words + _largest_residuals(model, meas) or ["no residual beyond 2σ"]
+
+
+def _largest_residuals(model: FloatArray, meas: MeasuredFeatures, k: int = 3) -> list[str]:
+    """Describe the largest residuals beyond 2σ (feature, σ, sign, design point); [] if none."""
+    r = residuals(model, meas)
+    big = [
+        (abs(float(r[i, j])), i, j)
+        for i in range(r.shape[0])
+        for j in range(r.shape[1])
+        if abs(r[i, j]) > 2.0 and abs(r[i, j]) < 1e3
+    ]
+    if not big:
+        return []
+    out = []
+    for _, i, j in sorted(big, reverse=True)[:k]:
+        c, a = meas.points[i]
+        name = "η" if meas.eta_rows[i] else FEATURES[j]
+        sign = "model above data" if r[i, j] > 0 else "model below data"
+        out.append(f"{name} {r[i, j]:+.1f}σ at Δr = {c:g} mm, Fg = {a:g} N ({sign})")
+    out.append(f"{len(big)} of {meas.n_obs} features beyond 2σ")
+    return out
 
 
 class Verdict(enum.StrEnum):
@@ -146,8 +172,56 @@ class Verdict(enum.StrEnum):
 
     EFFECT_MISSING = "effect_missing"
     NO_MISSING_EFFECT = "no_missing_effect"
+    CANNOT_TELL = "cannot_tell"
+    """Consistent with the model, but the data could not detect an error of the size that
+    matters (``DiagnoseSettings.tell_rel_error`` in the loop area / η)."""
     INDISTINGUISHABLE = "indistinguishable"
     UNEXPLAINED = "unexplained"
+
+
+SENSITIVITY_NAMES = ("delta_max", "loop_area_or_eta", "opening")
+"""Names of the three feature columns in a sensitivity statement (column 1 is W for a loop
+and η for an η-only row: at a given δ_max a relative error of one is one of the other)."""
+
+
+def sensitivity(meas: MeasuredFeatures, alpha: float, power: float) -> dict[str, float | None]:
+    """Smallest common relative error of each feature the χ² test would detect.
+
+    A model error that scales one feature by (1 + e) at every design point gives residuals
+    ``e·v_i/σ_i`` and makes χ² noncentral with ``λ = e² Σ (v_i/σ_i)²`` over the
+    informative features. The test (χ² above its (1 − α) quantile on N degrees of freedom)
+    detects it with probability ``power`` when λ reaches λ* with
+    ``P(χ²_N(λ*) > limit) = power``; so ``e_min = √(λ* / Σ (v_i/σ_i)²)``.
+
+    Returns:
+        Column name (``SENSITIVITY_NAMES``) → e_min (relative, e.g. 0.3 = 30 %), or None
+        where that feature carries no information at all.
+    """
+    from scipy import optimize
+
+    n = meas.n_obs
+    out: dict[str, float | None] = dict.fromkeys(SENSITIVITY_NAMES)
+    if n == 0:
+        return out
+    limit = float(stats.chi2.ppf(1.0 - alpha, n))
+    lam = optimize.brentq(lambda x: stats.ncx2.sf(limit, n, x) - power, 1e-9, 1e6 + 100 * n)
+    info = meas.informative
+    with np.errstate(invalid="ignore", divide="ignore"):
+        snr2 = np.where(info, (meas.values / meas.sigma) ** 2, 0.0)
+    for j, name in enumerate(SENSITIVITY_NAMES):
+        total = float(np.sum(snr2[:, j]))
+        out[name] = math.sqrt(lam / total) if total > 0 else None
+    return out
+
+
+def _power_words(sens: Mapping[str, float | None], alpha: float, power: float) -> str:
+    parts = [
+        f"{name.replace('_', ' ')} {'—' if e is None else f'{e:.0%}'}" for name, e in sens.items()
+    ]
+    return (
+        f"smallest relative error these data detect with {power:.0%} power at α = {alpha:g}: "
+        + ", ".join(parts)
+    )
 
 
 class _Decision(NamedTuple):
@@ -174,6 +248,8 @@ class Diagnosis:
         skipped: Candidate → why it was not tried.
         separating_test: For ``indistinguishable``: where the two fitted models differ most.
         stats: Cycles run, times.
+        sensitivity: Feature column → the smallest common relative error the data detect
+            (``sensitivity``; None: no information).
     """
 
     verdict: Verdict
@@ -187,6 +263,7 @@ class Diagnosis:
     skipped: Mapping[str, str]
     separating_test: str | None
     stats: Mapping[str, float]
+    sensitivity: Mapping[str, float | None] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "verdict", Verdict(self.verdict))  # also from its word
@@ -206,6 +283,7 @@ class Diagnosis:
             "skipped": dict(self.skipped),
             "separating_test": self.separating_test,
             "stats": dict(self.stats),
+            "sensitivity": dict(self.sensitivity),
         }
 
     def text(self) -> str:
@@ -219,6 +297,14 @@ class Diagnosis:
             f"χ² baseline {self.chi2_base:.1f} over N = {self.n_features} features "
             f"(noise limit {self.chi2_noise_limit:.1f})"
         )
+        if self.sensitivity:
+            lines.append(
+                "smallest relative error these data detect (80 % power): "
+                + ", ".join(
+                    f"{k.replace('_', ' ')} {'—' if v is None else f'{v:.0%}'}"
+                    for k, v in self.sensitivity.items()
+                )
+            )
         lines.append("candidates (best first):")
         for c in self.candidates:
             flags = ", ".join(
@@ -284,11 +370,23 @@ def _verdict(
 ) -> _Decision:
     good = [f for f in fits if f.counts]
     if not good:
+        sens = sensitivity(meas, s.alpha, s.power)
+        power = _power_words(sens, s.alpha, s.power)
+        area = sens["loop_area_or_eta"]
+        if n == 0 or area is None or area > s.tell_rel_error:
+            what = "no feature" if n == 0 else f"N = {n} features"
+            return _Decision(
+                Verdict.CANNOT_TELL,
+                (),
+                f"no misfit found, but {what} could reveal a loop-area (η) error below "
+                f"{s.tell_rel_error:.0%}: these data cannot tell ({power})",
+                None,
+            )
         if c0 <= limit:
             return _Decision(
                 Verdict.NO_MISSING_EFFECT,
                 (),
-                "the model is consistent with the data within the noise",
+                f"the model is consistent with the data within the noise ({power})",
                 None,
             )
         why = ""
@@ -389,6 +487,7 @@ def diagnose(
         candidates=tuple(fits),
         skipped=skipped,
         separating_test=sep,
+        sensitivity=sensitivity(meas, s.alpha, s.power),
         stats={
             "n_cycles": ev.n_cycles,
             "cycle_s": ev.cycle_s,

@@ -60,11 +60,17 @@ class FeatureSettings:
             levels 0 / 1 / 2, a discretisation error of ~0.0003 that the floor covers with
             room for the increment size).
         eta_rel_sigma: Relative uncertainty of a stated η (η-only tables carry none).
+        max_rel_sigma: A feature whose σ exceeds this fraction of its own value carries
+            no information about a relative model error below 100 % (e.g. the loop area
+            with clearance, where the force noise during the free-play crossing gives W a
+            σ tens of times the area): it is left out of χ² and of N, so that it neither
+            hides an error nor raises the noise limit.
     """
 
     rel_floor: float = 0.02
     eta_floor: float = 0.001
     eta_rel_sigma: float = 0.05
+    max_rel_sigma: float = 1.0
 
 
 def loop_features(loop: ProcessedLoop) -> FloatArray:

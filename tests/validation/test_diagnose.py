@@ -76,7 +76,7 @@ def test_residual_pattern_words():
     grow = m.values.copy()
     grow[:, 1] *= 1.0 + np.linspace(0.0, 0.6, 4)  # η error 0 → +60 %
     assert any("η error grows with amplitude" in w for w in residual_pattern(grow, m))
-    assert residual_pattern(m.values, m) == ["no systematic pattern beyond the noise"]
+    assert residual_pattern(m.values, m) == ["no residual beyond 2σ"]
 
 
 def test_features_of_an_ellipse_and_noise_sigma():
