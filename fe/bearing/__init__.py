@@ -1,0 +1,20 @@
+"""Closed-form and reduced models of the bearing hinge's ball bearings.
+
+The foundations the bearing-hinge cycle (``--ball-model hertz``) and its verification
+rest on; this sub-package imports ``cad``, numpy and scipy, and nothing else from ``fe``.
+
+* :mod:`fe.bearing.hertz` — Hertz point contact of two curved bodies: curvature sum and
+  difference, the ellipticity from the exact elliptic-integral equation (or Hamrock &
+  Brewe's approximations), the contact ellipse, approach, peak pressure, stiffness and the
+  load–deflection constant ``K`` of ``Q = K δ^{3/2}``; ball–raceway curvatures.
+
+A 708C ball (3.969 mm, pitch 15 mm, 15°) on its inner race (f_i = 0.52), 200 N:
+
+>>> from cad.materials import GCR15
+>>> from fe.bearing.hertz import Race, contact_ellipse, effective_modulus, race_curvatures
+>>> curv = race_curvatures(3.969, 15.0, 15.0, 0.52, Race.INNER)
+>>> c = contact_ellipse(curv, effective_modulus(GCR15, GCR15), 200.0)
+>>> print(f"a = {c.semi_major_mm:.3f} mm, b = {c.semi_minor_mm:.4f} mm, "
+...       f"δ = {1e3 * c.approach_mm:.2f} µm, p_max = {c.max_pressure_mpa:.0f} MPa")
+a = 0.614 mm, b = 0.0631 mm, δ = 5.00 µm, p_max = 2468 MPa
+"""
