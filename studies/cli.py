@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import sqlite3
 import sys
 
 from cad.errors import HingelabError
@@ -21,6 +22,7 @@ SUBCOMMAND_MODULES = (
     "studies.cmd_rsm",
     "studies.cmd_trace",
     "studies.cmd_sweep",
+    "studies.cmd_study",
     "studies.cmd_compare",
     "studies.cmd_synth",
     "studies.cmd_diagnose",
@@ -36,11 +38,30 @@ def build_parser() -> argparse.ArgumentParser:
         prog="hingelab",
         description="Hysteresis of precision space hinges: CAD → hex mesh → contact FE → response surfaces.",
     )
-    parser.add_argument("-v", "--verbose", action="store_true", help="log progress to stderr")
+    parser.add_argument(
+        "-v", "--verbose", action="store_true", help="log progress (and Dask's logs) to stderr"
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in SUBCOMMAND_MODULES:
         importlib.import_module(name).register(sub)
     return parser
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("hingelab")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+def _os_message(err: OSError) -> str:
+    """One line naming the path and what went wrong (``[Errno 13] ...`` without the errno)."""
+    what = err.strerror or str(err)
+    where = err.filename if err.filename is not None else ""
+    return f"{where}: {what}" if where else what
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -53,8 +74,16 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         return int(args.func(args))
-    except (HingelabError, FileNotFoundError) as err:
+    except HingelabError as err:
         print(f"hingelab {args.command}: error: {err}", file=sys.stderr)
+        return 1
+    except (
+        OSError
+    ) as err:  # a read-only folder, a full disk, a missing file: one line, no traceback
+        print(f"hingelab {args.command}: error: {_os_message(err)}", file=sys.stderr)
+        return 1
+    except sqlite3.Error as err:
+        print(f"hingelab {args.command}: error: database: {err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cad.errors import ParameterError
-from studies.pipeline import dumps
+from studies.pipeline import check_writable_dir, dumps
 
 if TYPE_CHECKING:
     from validation.measurements import MeasurementSet
@@ -29,14 +29,28 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("calibrate", help="fit named effects, write the model, log the error")
     p.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
     p.add_argument("data", type=Path, metavar="DATA_DIR", help="measurement folder (cases.csv)")
-    p.add_argument("--effects", default="", metavar="NAME[,NAME]", help="effects to add")
+    p.add_argument(
+        "--effects", default="", metavar="NAME[,NAME]", help="effects to add (default: none)"
+    )
     p.add_argument(
         "--mu", action="store_true", help="fit the friction coefficient first (bounded 0.02–0.8)"
     )
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     p.add_argument("--json", action="store_true", help="print the ledger as JSON")
-    p.add_argument("--model-error", type=float, default=0.02, metavar="REL", help="model floor")
-    p.add_argument("--increments", type=int, default=8, metavar="N", help="increments per stage")
+    p.add_argument(
+        "--model-error",
+        type=float,
+        default=0.02,
+        metavar="REL",
+        help="relative model error floor (default 0.02)",
+    )
+    p.add_argument(
+        "--increments",
+        type=int,
+        default=8,
+        metavar="N",
+        help="increments per stage (default 8; twice that with clearance)",
+    )
     p.add_argument(
         "--uncertainty",
         type=float,
@@ -66,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
         increments_per_stage=args.increments,
         clearance_increments=2 * args.increments,
     )
+    check_writable_dir(args.out, "--out")  # before the fit, not after
     new_spec, rows = calibrate(spec, data, names, settings, fit_mu=args.mu)
     model_out = write_model(new_spec, args.out / "MODEL.toml")
     every = append_ledger(args.out, rows)

@@ -7,17 +7,21 @@ clearance, reused for every amplitude — compares (``validation.compare``) and 
 into DIR: ``comparison.json``, the model loops as ``model_loops/*.csv`` and the
 pictures (``loops/<case>.png``, ``error_map.png``, ``residuals.png``,
 ``fingerprint.png``). The exit status is 0 whether cases pass or fail (the verdict is
-in the output); 1 only for bad input.
+in the output) unless ``--fail-on-mismatch`` asks for 2 when any case fails; 1 for bad
+input.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from studies.pipeline import dumps
-from validation.compare import METRIC_LABELS, METRICS, CompareSettings, Comparison
-from validation.workflow import compare_and_write
+from studies.pipeline import check_writable_dir, dumps
+
+if TYPE_CHECKING:
+    from validation.compare import Comparison
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -46,17 +50,25 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="compare with the model loop without the 4Δr free play (the test machine sees it)",
     )
     p.add_argument("--no-plots", action="store_true", help="skip the pictures")
+    p.add_argument(
+        "--fail-on-mismatch",
+        action="store_true",
+        help="exit 2 when any case fails (for CI pipelines; default: exit 0 whatever the verdict)",
+    )
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab compare``."""
+    from validation.compare import CompareSettings
     from validation.measurements import read_measurement_set
     from validation.model_file import read_model
+    from validation.workflow import compare_and_write
 
     spec = read_model(args.model)
     data = read_measurement_set(args.data)
     settings = CompareSettings(k=args.k, default_rel_uncertainty=args.uncertainty)
+    check_writable_dir(args.out, "--out")  # before the model runs, not after
     cmp, report = compare_and_write(
         spec,
         data,
@@ -75,6 +87,13 @@ def run(args: argparse.Namespace) -> int:
             f"results in {args.out}/ (comparison.json, loops/, error_map.png, residuals.png, "
             f"fingerprint.png)   {report['wall_s']:.1f} s"
         )
+    n_fail = sum(not c.passed for c in cmp.cases)
+    if args.fail_on_mismatch and n_fail:
+        print(
+            f"hingelab compare: {n_fail} of {len(cmp.cases)} cases fail (--fail-on-mismatch)",
+            file=sys.stderr,
+        )
+        return 2
     return 0
 
 
@@ -84,6 +103,8 @@ def _fmt(slope: float) -> str:
 
 def format_table(cmp: Comparison) -> str:
     """Return the per-case table and the overall line (errors in %, * where |e| > kσ)."""
+    from validation.compare import METRIC_LABELS, METRICS
+
     heads = [
         "case",
         "Δr mm",

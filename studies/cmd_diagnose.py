@@ -29,20 +29,32 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         metavar="REL",
         help="relative model error floor of the features (default 0.02)",
     )
-    p.add_argument("--alpha", type=float, default=0.01, help="false-alarm probability (0.01)")
     p.add_argument(
-        "--increments", type=int, default=8, metavar="N", help="increments per stage (8)"
+        "--alpha",
+        type=float,
+        default=0.01,
+        help="false-alarm probability, in (0, 0.5] (default 0.01)",
+    )
+    p.add_argument(
+        "--increments",
+        type=int,
+        default=8,
+        metavar="N",
+        help="increments per stage (default 8; twice that with clearance)",
     )
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab diagnose``."""
+    from cad.errors import ParameterError
     from validation.diagnose import DiagnoseSettings, diagnose
     from validation.features import FeatureSettings
     from validation.measurements import read_measurement_set
     from validation.model_file import read_model
 
+    if not 0.0 < args.alpha <= 0.5:  # 'not' also refuses NaN
+        raise ParameterError(f"--alpha must be in (0, 0.5], got {args.alpha}")
     spec = read_model(args.model)
     data = read_measurement_set(args.data)
     settings = DiagnoseSettings(

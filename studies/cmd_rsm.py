@@ -12,20 +12,17 @@ comparison report (Markdown and JSON) and the plots into DIR.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from rsm import paper as paper_mod
-from rsm import trace
-from rsm.metrics import FitMetrics, OverfitWarning, fit_metrics
-from rsm.plots import plot_all
-from rsm.polynomial import ResponseSurface, fit_response_surface, predict, term_names
-from rsm.query import extrema, threshold_region
-from rsm.tables import read_xy
+from studies.pipeline import dumps
+
+if TYPE_CHECKING:  # the fit, plots and paper tables load scipy and matplotlib: only when used
+    from rsm.metrics import FitMetrics
+    from rsm.polynomial import ResponseSurface
 
 
 def register(subparsers: Any) -> None:
@@ -39,7 +36,9 @@ def register(subparsers: Any) -> None:
     f.add_argument("--y", required=True, help="response column")
     f.add_argument("--degree", type=int, default=4, help="total degree 1-4 (default 4)")
     f.add_argument("--json", action="store_true", help="print JSON instead of text")
-    f.add_argument("--out", type=Path, help="folder for plots (default <table stem>_rsm/)")
+    f.add_argument(
+        "--out", type=Path, help="folder for plots (default <table stem>_rsm/ next to the table)"
+    )
     f.add_argument("--no-plots", action="store_true", help="do not write plots")
     f.add_argument("--threshold", type=float, help="shade the region where y < THRESHOLD")
     f.add_argument("--above", action="store_true", help="with --threshold: shade y > THRESHOLD")
@@ -48,7 +47,9 @@ def register(subparsers: Any) -> None:
     f.set_defaults(func=run_fit)
 
     q = sub.add_parser("paper", help="refit the paper's tables; write the comparison report")
-    q.add_argument("--out", type=Path, default=Path("rsm_paper"), help="output folder")
+    q.add_argument(
+        "--out", type=Path, default=Path("rsm_paper"), help="output folder (default rsm_paper)"
+    )
     q.add_argument("--json", action="store_true", help="print JSON instead of Markdown")
     q.add_argument("--no-plots", action="store_true", help="write the report only")
     q.set_defaults(func=run_paper)
@@ -59,6 +60,10 @@ def _num(v: float) -> float | None:
 
 
 def _fit(args: argparse.Namespace) -> tuple[ResponseSurface, FitMetrics, list[str]]:
+    from rsm.metrics import OverfitWarning, fit_metrics
+    from rsm.polynomial import fit_response_surface
+    from rsm.tables import read_xy
+
     x_names = [c.strip() for c in args.x.split(",") if c.strip()]
     xy = read_xy(args.table, x_names, args.y)
     s = fit_response_surface(
@@ -74,6 +79,9 @@ def fit_report(
     s: ResponseSurface, m: FitMetrics, threshold: float | None, below: bool
 ) -> dict[str, Any]:
     """Collect everything ``rsm fit`` reports, as JSON-ready data."""
+    from rsm.polynomial import predict, term_names
+    from rsm.query import extrema, threshold_region
+
     names = term_names(s.exponents, s.x_names)
     fitted = predict(s, s.x)
     ext = extrema(s)
@@ -163,11 +171,19 @@ def _g(v: float | None) -> str:
 
 def run_fit(args: argparse.Namespace) -> int:
     """Fit, report, plot and optionally record a response surface."""
+    from rsm import trace
+    from rsm.plots import plot_all
+    from studies.pipeline import check_trace_db, check_writable_dir
+
+    out_dir = args.out or args.table.parent / f"{args.table.stem}_rsm"
+    if not args.no_plots:  # every output is checked before the fit
+        check_writable_dir(out_dir, "--out")
+    if args.trace is not None:
+        check_trace_db(args.trace, "--trace")
     s, m, warns = _fit(args)
     rep = fit_report(s, m, args.threshold, not args.above)
     rep["warnings"] = warns
     if not args.no_plots:
-        out_dir = args.out or args.table.parent / f"{args.table.stem}_rsm"
         plots = plot_all(s, m, out_dir, threshold=args.threshold)
         rep["plots"] = {k: str(v) for k, v in plots.items()}
     if args.trace is not None:
@@ -181,7 +197,7 @@ def run_fit(args: argparse.Namespace) -> int:
     for w in warns:
         print(f"warning: {w}", file=sys.stderr)
     if args.json:
-        print(json.dumps(rep, indent=2))
+        print(dumps(rep))
     else:
         _print_text(rep)
         for k, v in rep.get("plots", {}).items():
@@ -191,6 +207,9 @@ def run_fit(args: argparse.Namespace) -> int:
 
 def run_paper(args: argparse.Namespace) -> int:
     """Refit the paper's tables, write the comparison report and the plots."""
+    from rsm import paper as paper_mod
+    from rsm.plots import plot_all
+
     cmp = paper_mod.compare_with_paper()
     files = paper_mod.write_report(cmp, args.out)
     slice_at = {
@@ -211,7 +230,7 @@ def run_paper(args: argparse.Namespace) -> int:
     if args.json:
         data = paper_mod.report_json(cmp)
         data["files"] = {"markdown": str(files.markdown), "json": str(files.json), **plots}
-        print(json.dumps(data, indent=2, ensure_ascii=False))
+        print(dumps(data))
     else:
         print(files.markdown.read_text(encoding="utf-8"))
         print(f"report: {files.markdown} and {files.json}")

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from cad.errors import ParameterError
-from fe.hinge.cycle import DEFAULT_MU
+from fe.hinge.protocol import DEFAULT_MU
 from studies.args import add_mesh_arguments, settings_from_args
 from studies.pipeline import dumps
 from studies.sweep import SweepSettings, run_sweep
@@ -84,7 +84,9 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(dumps(summary))
     elif outcome.ok + outcome.cached + outcome.skipped == 0:
-        print(f"no point succeeded ({outcome.failed} failed); see the errors above", file=sys.stderr)
+        print(
+            f"no point succeeded ({outcome.failed} failed); see the errors above", file=sys.stderr
+        )
     else:
         print(
             f"{outcome.ok} points computed, {outcome.cached} read back from results/, "

@@ -3,15 +3,46 @@
 from __future__ import annotations
 
 import json
-from typing import Any
+import math
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from cad.errors import ParameterError
-from cad.model import HingeModel
-from fe.service.geometry import MeshedHinge, build_and_mesh
 
-__all__ = ["HINGES", "MeshedHinge", "build_and_mesh", "dumps", "make_model", "mesh_summary"]
+if TYPE_CHECKING:  # the geometry stack imports build123d (seconds): only where it is used
+    from cad.model import HingeModel
+    from fe.service.geometry import MeshedHinge
+    from mesh.settings import MeshSettings
+
+__all__ = [
+    "HINGES",
+    "MeshedHinge",
+    "build_and_mesh",
+    "dumps",
+    "make_model",
+    "mesh_summary",
+    "strict_json",
+]
 
 HINGES = ("general", "bearing")
+
+
+def build_and_mesh(
+    model: HingeModel, settings: MeshSettings, out: Path | None, *, picture: bool = True
+) -> MeshedHinge:
+    """Mesh a hinge model and write its files (``fe.service.geometry.build_and_mesh``)."""
+    from fe.service.geometry import build_and_mesh as build
+
+    return build(model, settings, out, picture=picture)
+
+
+def __getattr__(name: str) -> Any:
+    if name == "MeshedHinge":  # re-exported lazily, so that ``hingelab --help`` stays fast
+        from fe.service.geometry import MeshedHinge
+
+        return MeshedHinge
+    raise AttributeError(name)
 
 
 def make_model(
@@ -71,5 +102,102 @@ def mesh_summary(m: MeshedHinge, total_wall_s: float) -> dict[str, Any]:
 
 
 def dumps(obj: Any) -> str:
-    """JSON with paths and numpy scalars turned into plain values."""
-    return json.dumps(obj, default=lambda o: o.item() if hasattr(o, "item") else str(o), indent=2)
+    """Strict JSON: NaN and ±Infinity become null; paths, enums and numpy values plain.
+
+    Strict parsers (and SQLite's JSON functions) reject the ``NaN`` that ``json.dumps``
+    writes by default, so every JSON the command line prints or writes goes through here.
+    """
+    return json.dumps(strict_json(obj), indent=2, allow_nan=False, ensure_ascii=False)
+
+
+def strict_json(obj: Any) -> Any:
+    """Return ``obj`` as plain JSON values, every non-finite float replaced by None."""
+    if isinstance(obj, dict):
+        return {str(k): strict_json(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [strict_json(v) for v in obj]
+    if hasattr(obj, "tolist"):  # numpy arrays and scalars
+        return strict_json(obj.tolist())
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if obj is None or isinstance(obj, bool | int | str):
+        return obj
+    if hasattr(obj, "value") and isinstance(obj.value, str | int):  # enums
+        return obj.value
+    return str(obj)
+
+
+def check_writable_dir(folder: Path, option: str) -> Path:
+    """Create ``folder`` if needed and check a file can be written there, before any work.
+
+    Args:
+        folder: The output folder.
+        option: The command-line option that named it (``--out``), for the message.
+
+    Returns:
+        The folder.
+
+    Raises:
+        DataError: Naming the option and the path when the folder cannot be created or
+            written (a read-only file system, no permission, a file in the way).
+    """
+    import tempfile
+
+    from cad.errors import DataError
+
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".hingelab-write-check-"):
+            pass
+    except OSError as err:
+        why = err.strerror or type(err).__name__
+        raise DataError(f"{option} {folder}: cannot write there ({why})") from err
+    return folder
+
+
+TRACE_TABLES = ("meta", "studies", "points")
+"""Tables a hingelab trace database has (``rsm.trace`` describes the whole schema)."""
+
+
+def check_trace_db(db: Path, option: str) -> Path:
+    """Check that ``db`` can become (or already is) a hingelab trace, before any work.
+
+    A missing file needs a writable folder; an existing one must be writable, an SQLite
+    database, and hold the trace's tables (an empty file is accepted: SQLite creates it).
+
+    Raises:
+        DataError: Naming the option and the path, saying what is wrong.
+    """
+    import sqlite3
+
+    from cad.errors import DataError
+
+    db = Path(db)
+    if db.is_dir():
+        raise DataError(f"{option} {db}: is a folder, expected a trace database file")
+    if not db.exists():
+        check_writable_dir(db.parent, option)
+        return db
+    if not os.access(db, os.R_OK | os.W_OK):
+        raise DataError(f"{option} {db}: cannot write the trace database (no permission)")
+    with db.open("rb") as fh:
+        head = fh.read(16)
+    if not head:
+        return db
+    if head != b"SQLite format 3\x00":
+        raise DataError(f"{option} {db}: not an SQLite database (not a hingelab trace)")
+    try:
+        con = sqlite3.connect(f"{db.resolve().as_uri()}?mode=ro", uri=True)
+        try:
+            names = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+        finally:
+            con.close()
+    except sqlite3.Error as err:
+        raise DataError(f"{option} {db}: not a usable SQLite database ({err})") from err
+    if names and not set(TRACE_TABLES) <= names:
+        raise DataError(
+            f"{option} {db}: an SQLite database but not a hingelab trace "
+            f"(tables {sorted(names)}; a trace has {list(TRACE_TABLES)})"
+        )
+    return db

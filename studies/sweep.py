@@ -11,7 +11,15 @@ run once. A point that fails is recorded with its error (and its partial loop wh
 solver gave one) and the sweep goes on.
 
 With ``workers > 1`` the points run on a Dask ``LocalCluster`` of worker processes, all
-points of one clearance on the same worker (one preparation per clearance).
+points of one clearance on the same worker (one preparation per clearance). With a
+``scheduler`` address they run on that existing Dask cluster instead: the workers need
+only the installed package; each point's cycle comes back to this process, which stores
+it, writes its files and records it (the geometry files stay with the workers).
+
+A sweep is a clearance × amplitude grid, or any list of points (``points``: a Latin
+hypercube or central composite design of a study file, ``studies.study_file``), on the
+default general hinge or on any ``ModelSpec`` (``model``). ``plan_sweep`` says, without
+meshing anything, which points are done, stored, failed before, or still to run.
 
 Layout of ``out``::
 
@@ -25,8 +33,8 @@ Layout of ``out``::
 
 from __future__ import annotations
 
+import enum
 import logging
-import os
 import sqlite3
 import time
 from collections.abc import Callable
@@ -54,6 +62,12 @@ class SweepSettings:
         mesh: Mesh settings.
         workers: Dask worker processes; 1 runs in this process.
         study: Study name in the trace.
+        points: Explicit (clearance [mm], amplitude [N]) points; when given they replace
+            the grid of ``clearances_mm`` × ``amplitudes_n``.
+        model: The model (``fe.service.ModelSpec``) to run instead of the default
+            general hinge with ``mu``, the increments and ``mesh`` above.
+        scheduler: Address of an existing Dask scheduler (``tcp://host:8786``); None runs
+            in this process or on a private LocalCluster (``workers``).
     """
 
     clearances_mm: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4)
@@ -64,9 +78,12 @@ class SweepSettings:
     mesh: MeshSettings = field(default_factory=MeshSettings)
     workers: int = 1
     study: str = "general_hinge"
+    points_mm_n: tuple[tuple[float, float], ...] = ()
+    model: Any = None
+    scheduler: str | None = None
 
     def __post_init__(self) -> None:
-        if not self.clearances_mm or not self.amplitudes_n:
+        if not self.points_mm_n and (not self.clearances_mm or not self.amplitudes_n):
             raise ParameterError(
                 f"a sweep needs at least one clearance and one amplitude, got {self.clearances_mm} "
                 f"and {self.amplitudes_n}"
@@ -78,6 +95,11 @@ class SweepSettings:
 
     def spec(self) -> Any:
         """The ``fe.service.ModelSpec`` of the sweep (the clearance is set per point)."""
+        if self.model is not None:
+            from fe.service import check_spec
+
+            check_spec(self.model)
+            return self.model
         from cad.general import GeneralHingeParams
         from fe.hinge.protocol import CycleSettings
         from fe.service import ModelSpec
@@ -90,10 +112,16 @@ class SweepSettings:
         return ModelSpec("general", GeneralHingeParams(), self.mesh, cycle)
 
     def points(self) -> list[Any]:
-        """The distinct design points, clearance-major."""
-        from fe.service import design_points
+        """The distinct design points (the grid clearance-major, or ``points`` in order)."""
+        from fe.service import DesignPoint, design_points
 
-        return design_points(self.clearances_mm, self.amplitudes_n)
+        if not self.points_mm_n:
+            return design_points(self.clearances_mm, self.amplitudes_n)
+        seen: dict[tuple[float, float], Any] = {}
+        for c, a in self.points_mm_n:
+            p = DesignPoint(amplitude_n=a, clearance_mm=c)
+            seen.setdefault((p.clearance_mm, p.amplitude_n), p)
+        return list(seen.values())
 
 
 def point_key(clearance_mm: float, amplitude_n: float) -> str:
@@ -106,11 +134,42 @@ def geometry_folder(out: Path) -> Callable[[float], Path]:
     return lambda clearance: out / "geometry" / f"c{clearance:.3f}"
 
 
-def point_record(run: Any, settings: SweepSettings, out: Path) -> dict[str, Any]:
-    """Write a point's files (loop CSV/PNG, result.json) and return its trace record."""
-    from fe.contact.newton import LU_THREADS
+def mesh_stats_of(prepared: Any) -> dict[str, Any]:
+    """The mesh figures a point's trace record keeps, from a prepared geometry."""
+    r = prepared.meshed.report
+    return {
+        "n_hex": r.n_hex,
+        "n_nodes": r.n_nodes,
+        "min_scaled_jacobian": r.min_scaled_jacobian,
+        "hex_fraction": r.hex_fraction,
+    }
+
+
+def point_record(
+    run: Any,
+    settings: SweepSettings,
+    out: Path,
+    *,
+    mesh_stats: dict[str, Any] | None = None,
+    lu_threads: int | None = None,
+) -> dict[str, Any]:
+    """Write a point's files (loop CSV/PNG, result.json) and return its trace record.
+
+    Args:
+        run: The point's ``fe.service.PointRun``.
+        settings: The sweep.
+        out: The sweep's folder.
+        mesh_stats: Mesh figures when ``run.prepared`` is None (a point run elsewhere).
+        lu_threads: The LU thread count of the process that ran it (default: this one's).
+    """
     from fe.hinge.report import write_loop_csv, write_loop_png
-    from studies.pipeline import dumps
+    from studies.pipeline import dumps, strict_json
+
+    if lu_threads is None:
+        from fe.contact import newton
+
+        lu_threads = int(newton.LU_THREADS)
+    spec = settings.spec()
 
     p = run.point
     folder = out / "points" / point_key(p.clearance_mm, p.amplitude_n)
@@ -123,25 +182,18 @@ def point_record(run: Any, settings: SweepSettings, out: Path) -> dict[str, Any]
         "mesh_png": geo / "mesh.png",
     }
     artifacts = {k: v for k, v in artifacts.items() if v.is_file()}
-    mesh_stats: dict[str, Any] = {}
-    if run.prepared is not None:
-        r = run.prepared.meshed.report
-        mesh_stats = {
-            "n_hex": r.n_hex,
-            "n_nodes": r.n_nodes,
-            "min_scaled_jacobian": r.min_scaled_jacobian,
-            "hex_fraction": r.hex_fraction,
-        }
+    mesh_stats = mesh_stats_of(run.prepared) if run.prepared is not None else (mesh_stats or {})
     rec: dict[str, Any] = {
         "study": settings.study,
         "params": {"clearance_mm": p.clearance_mm, "amplitude_N": p.amplitude_n},
         "solver": {
             "result_key": run.key,
-            "mu": settings.mu,
-            "increments_per_stage": settings.increments_per_stage,
-            "clearance_increments": settings.clearance_increments,
-            "mesh": asdict(settings.mesh),
-            "lu_threads": LU_THREADS,  # this worker's share of the cores (timings depend on it)
+            "mu": spec.cycle.mu,
+            "increments_per_stage": spec.cycle.increments_per_stage,
+            "clearance_increments": spec.cycle.clearance_increments,
+            "mesh": asdict(spec.mesh),
+            "effects": {k: dict(v) for k, v in spec.effects.items()},
+            "lu_threads": lu_threads,  # this worker's share of the cores (timings depend on it)
             "cached": run.cached,
         },
         "mesh_stats": mesh_stats,
@@ -151,18 +203,21 @@ def point_record(run: Any, settings: SweepSettings, out: Path) -> dict[str, Any]
         result = run.result
         title = (
             f"general hinge, Δr = {p.clearance_mm:g} mm, Fg = {p.amplitude_n:g} N, "
-            f"μ = {settings.mu:g}"
+            f"μ = {spec.cycle.mu:g}"
         )
         artifacts["loop_csv"] = write_loop_csv(result, folder / "loop.csv")
         artifacts["loop_png"] = write_loop_png(result, folder / "loop.png", title=title)
-        rec["results"] = {k: v for k, v in result.metrics().items() if isinstance(v, float)} | {
-            "wall_s": run.wall_s
-        }
-        rec["convergence"] = {
-            "increments": len(result.increments),
-            "iterations": [i.iterations for i in result.increments],
-            "timings_s": result.timings_s,
-        }
+        # NaN (η of a loop without energy) becomes null: strict JSON, and no NaN in the table
+        rec["results"] = strict_json(
+            {k: v for k, v in result.metrics().items() if isinstance(v, float)}
+        ) | {"wall_s": run.wall_s}
+        rec["convergence"] = strict_json(
+            {
+                "increments": len(result.increments),
+                "iterations": [i.iterations for i in result.increments],
+                "timings_s": result.timings_s,
+            }
+        )
         rec["status"], rec["error"] = "ok", None
     else:
         if run.partial is not None and run.partial.increments:
@@ -173,27 +228,97 @@ def point_record(run: Any, settings: SweepSettings, out: Path) -> dict[str, Any]
     return rec
 
 
-def traced_keys(db: Path, study: str) -> dict[str, int]:
-    """Return result key → point id of the points the trace holds as ``ok`` for a study."""
+def trace_status(db: Path, study: str) -> tuple[dict[str, int], set[str]]:
+    """Return (result key → point id of ``ok`` points, keys whose points only failed) of a study.
+
+    Raises:
+        DataError: If ``db`` exists but is not a readable trace.
+    """
     import json
 
+    from cad.errors import DataError
+
     if not db.exists():
-        return {}
-    con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+        return {}, set()
     try:
-        rows = con.execute(
-            "SELECT p.id, p.solver_json FROM points p JOIN studies s ON p.study_id = s.id "
-            "WHERE s.name = ? AND p.status = 'ok'",
-            (study,),
-        ).fetchall()
-    finally:
-        con.close()
-    out = {}
-    for pid, solver in rows:
+        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+        try:
+            rows = con.execute(
+                "SELECT p.id, p.status, p.solver_json FROM points p JOIN studies s "
+                "ON p.study_id = s.id WHERE s.name = ? ORDER BY p.id",
+                (study,),
+            ).fetchall()
+        finally:
+            con.close()
+    except sqlite3.Error as err:
+        raise DataError(f"{db}: not a readable hingelab trace ({err})") from err
+    ok: dict[str, int] = {}
+    failed: set[str] = set()
+    for pid, status, solver in rows:
         key = json.loads(solver).get("result_key")
-        if key:
-            out[key] = pid
-    return out
+        if not key:
+            continue
+        if status == "ok":
+            ok[key] = pid
+        else:
+            failed.add(key)
+    return ok, failed - set(ok)
+
+
+def traced_keys(db: Path, study: str) -> dict[str, int]:
+    """Return result key → point id of the points the trace holds as ``ok`` for a study."""
+    return trace_status(db, study)[0]
+
+
+class PointState(enum.StrEnum):
+    """Where a sweep point stands before a run."""
+
+    DONE = "done"
+    """In the trace as ok with the same result key: not run again."""
+    STORED = "stored"
+    """In ``results/`` (finished by an interrupted run): read back, not computed."""
+    FAILED = "failed"
+    """Failed in an earlier run: run again (``--retry-failed`` runs only these)."""
+    TODO = "todo"
+    """Never run: computed."""
+
+
+@dataclass(frozen=True)
+class PlannedPoint:
+    """One point of a sweep and what a run would do with it.
+
+    Attributes:
+        point: The ``fe.service.DesignPoint``.
+        key: Its result key.
+        state: Done, stored, failed before, or to do.
+        point_id: Its trace id when done.
+    """
+
+    point: Any
+    key: str
+    state: PointState
+    point_id: int | None = None
+
+
+def plan_sweep(settings: SweepSettings, out: Path) -> list[PlannedPoint]:
+    """Say what a run would do at every point, without meshing or writing anything."""
+    from fe.service import ResultStore, result_key
+
+    spec = settings.spec()
+    ok, failed = trace_status(out / "trace.sqlite", settings.study)
+    store = ResultStore(out / "results")
+    plan = []
+    for p in settings.points():
+        key = result_key(spec, p)
+        if key in ok:
+            plan.append(PlannedPoint(p, key, PointState.DONE, ok[key]))
+        elif key in store:
+            plan.append(PlannedPoint(p, key, PointState.STORED))
+        elif key in failed:
+            plan.append(PlannedPoint(p, key, PointState.FAILED))
+        else:
+            plan.append(PlannedPoint(p, key, PointState.TODO))
+    return plan
 
 
 @dataclass(frozen=True)
@@ -220,34 +345,43 @@ class SweepOutcome:
 
 
 def run_sweep(
-    settings: SweepSettings, out: Path, *, on_point: Callable[[dict[str, Any]], None] | None = None
+    settings: SweepSettings,
+    out: Path,
+    *,
+    on_point: Callable[[dict[str, Any]], None] | None = None,
+    retry_failed: bool = False,
 ) -> SweepOutcome:
     """Run (or resume) a sweep and record every point in ``out/trace.sqlite``.
 
     Args:
-        settings: The grid, solver and mesh settings, worker count.
+        settings: The points, model, worker count or scheduler.
         out: Output folder (created); rerunning on the same folder resumes.
         on_point: Called with each point's record as it is stored.
+        retry_failed: Run only the points that failed in an earlier run.
 
     Returns:
         Counts of computed, failed, skipped and cached points, and the trace and table paths.
+
+    Raises:
+        DataError: If ``out`` cannot be written or its trace is not a hingelab trace
+            (checked before anything is meshed).
     """
-    from fe.service import result_key
     from rsm import trace
+    from studies.pipeline import check_trace_db, check_writable_dir
 
     t0 = time.perf_counter()
-    out.mkdir(parents=True, exist_ok=True)
-    db = out / "trace.sqlite"
+    check_writable_dir(out, "--out")
+    db = check_trace_db(out / "trace.sqlite", "--out")
+    plan = plan_sweep(settings, out)
     trace.create(db)
     spec = settings.spec()
-    traced = traced_keys(db, settings.study)
-    todo, ids = [], []
-    for p in settings.points():
-        key = result_key(spec, p)
-        if key in traced:
-            ids.append(traced[key])
-        else:
-            todo.append(p)
+    ids = [pp.point_id for pp in plan if pp.state is PointState.DONE and pp.point_id is not None]
+    wanted = (
+        {PointState.FAILED}
+        if retry_failed
+        else {PointState.STORED, PointState.FAILED, PointState.TODO}
+    )
+    todo = [pp.point for pp in plan if pp.state in wanted]
     counts = {"ok": 0, "failed": 0, "cached": 0}
 
     def store(rec: dict[str, Any]) -> None:
@@ -271,11 +405,17 @@ def run_sweep(
             on_point(rec)
 
     n_geo = len({p.clearance_mm for p in todo})
-    if settings.workers == 1 or n_geo <= 1:
+    if settings.scheduler is not None and todo:
+        from studies.sweep_dask import run_on_scheduler
+
+        run_on_scheduler(todo, settings, out, store)
+    elif settings.workers == 1 or n_geo <= 1:
         service = _service(out)
         service.run(spec, todo, on_result=lambda run: store(point_record(run, settings, out)))
     else:
-        _run_on_dask(todo, settings, out, store)
+        from studies.sweep_dask import run_on_local_cluster
+
+        run_on_local_cluster(todo, settings, out, store)
     skipped = len(ids) - counts["ok"] - counts["failed"]
     table = out / "table.csv"
     if counts["ok"] + skipped:  # this run's points only (failed ones are left out by status)
@@ -300,58 +440,3 @@ def _service(out: Path) -> Any:
         geometry_dir=geometry_folder(out),
         max_geometries=1,
     )
-
-
-_WORKER_SERVICES: dict[str, Any] = {}
-
-
-def run_point_task(settings: SweepSettings, point: Any, out: Path) -> dict[str, Any]:
-    """Run one point in a worker process (its geometry reused across the worker's tasks)."""
-    service = _WORKER_SERVICES.setdefault(str(out), _service(out))
-    (run,) = service.run(settings.spec(), [point])
-    return point_record(run, settings, out)
-
-
-def _run_on_dask(
-    points: list[Any],
-    settings: SweepSettings,
-    out: Path,
-    store: Callable[[dict[str, Any]], None],
-) -> None:
-    """Run points on a local Dask cluster, one clearance per worker, storing each as it completes."""
-    from dask.distributed import Client, LocalCluster, as_completed
-
-    clearances = list(dict.fromkeys(p.clearance_mm for p in points))
-    n = min(settings.workers, len(clearances))
-    with (
-        LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,
-            # one worker per core: a worker's large LUs must not take a second thread
-            env={"HINGELAB_LU_THREADS": str(max(1, (os.cpu_count() or 1) // n))},
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        workers = sorted(client.scheduler_info()["workers"])
-        home = {c: workers[i % len(workers)] for i, c in enumerate(clearances)}
-        futures = [
-            client.submit(
-                run_point_task,
-                settings,
-                p,
-                out,
-                pure=False,
-                workers=[home[p.clearance_mm]],
-                allow_other_workers=False,
-            )
-            for p in points
-        ]
-        try:
-            for future in as_completed(futures):
-                store(future.result())
-        except BaseException:
-            client.cancel(futures)
-            raise

@@ -1,0 +1,166 @@
+"""Sweep points on Dask: a private ``LocalCluster``, or an existing cluster by its address.
+
+Both pin every point of one clearance to one worker (one preparation per clearance) and
+hand each point's record to the driver the moment it completes, so the driver records it
+in the trace at once (an interrupted sweep keeps every finished point).
+
+* ``run_on_local_cluster``: worker processes on this machine share the sweep's folder;
+  each stores its results and writes its files there itself.
+* ``run_on_scheduler``: the workers of an existing cluster may be other machines and need
+  only the installed package. A worker computes the cycle and sends it back (without the
+  condensed operators); this process stores it, writes the loop files and records the
+  point. The geometry files (STEP, mesh) stay with the workers, in memory.
+
+Dask logs (connections, "killing worker" on shutdown) are silenced unless the root logger
+is at INFO (``hingelab -v``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from cad.errors import DataError
+
+logger = logging.getLogger(__name__)
+
+Store = Callable[[dict[str, Any]], None]
+
+_WORKER_SERVICES: dict[str, Any] = {}
+_WORKER_LOCK = threading.Lock()  # a worker with several threads prepares each geometry once
+
+
+def _quiet_dask() -> None:
+    """Silence Dask's INFO/WARNING chatter unless the user asked for logs (-v)."""
+    if not logging.getLogger().isEnabledFor(logging.INFO):
+        for name in ("distributed", "distributed.client", "distributed.worker", "tornado"):
+            logging.getLogger(name).setLevel(logging.ERROR)
+
+
+def run_point_task(settings: Any, point: Any, out: Path) -> dict[str, Any]:
+    """Run one point in a LocalCluster worker (its geometry reused across the worker's tasks)."""
+    from studies.sweep import _service, point_record
+
+    with _WORKER_LOCK:
+        service = _WORKER_SERVICES.setdefault(str(out), _service(out))
+        (run,) = service.run(settings.spec(), [point])
+    return point_record(run, settings, out)
+
+
+def run_point_remote(spec: Any, point: Any) -> dict[str, Any]:
+    """Run one point on a worker of an existing cluster; return the cycle, not files.
+
+    Returns:
+        ``run`` (the ``PointRun`` without its geometry and condensed operators),
+        ``mesh_stats`` and ``lu_threads`` of this worker.
+    """
+    from fe.contact.newton import LU_THREADS
+    from fe.service import ModelService, content_hash
+    from studies.sweep import mesh_stats_of
+
+    with _WORKER_LOCK:
+        key = content_hash({"spec": spec})
+        service = _WORKER_SERVICES.get(key)
+        if service is None:
+            _WORKER_SERVICES.clear()  # one model at a time per worker (memory)
+            service = _WORKER_SERVICES[key] = ModelService(max_geometries=1)
+        (run,) = service.run(spec, [point])
+    stats = mesh_stats_of(run.prepared) if run.prepared is not None else {}
+    light = dataclasses.replace(
+        run,
+        result=None if run.result is None else dataclasses.replace(run.result, configs={}),
+        partial=None if run.partial is None else dataclasses.replace(run.partial, configs={}),
+        prepared=None,
+    )
+    return {"run": light, "mesh_stats": stats, "lu_threads": LU_THREADS}
+
+
+def _submit_pinned(
+    client: Any, points: list[Any], task: Callable[..., Any], args: Callable[[Any], tuple[Any, ...]]
+) -> list[Any]:
+    """Submit ``task(*args(point))`` for every point, all points of a clearance on one worker."""
+    clearances = list(dict.fromkeys(p.clearance_mm for p in points))
+    workers = sorted(client.scheduler_info()["workers"])
+    if not workers:
+        raise DataError("the Dask cluster has no workers")
+    home = {c: workers[i % len(workers)] for i, c in enumerate(clearances)}
+    return [
+        client.submit(
+            task, *args(p), pure=False, workers=[home[p.clearance_mm]], allow_other_workers=False
+        )
+        for p in points
+    ]
+
+
+def _drain(client: Any, futures: list[Any], handle: Callable[[Any], None]) -> None:
+    """Hand each finished task's value to ``handle`` in completion order; cancel the rest on error."""
+    from dask.distributed import as_completed
+
+    try:
+        for future in as_completed(futures):  # type: ignore[no-untyped-call]  # dask: unannotated
+            handle(future.result())
+    except BaseException:
+        client.cancel(futures)
+        raise
+
+
+def run_on_local_cluster(points: list[Any], settings: Any, out: Path, store: Store) -> None:
+    """Run points on a private LocalCluster of ``settings.workers`` processes."""
+    from dask.distributed import Client, LocalCluster
+
+    _quiet_dask()
+    n = min(settings.workers, len({p.clearance_mm for p in points}))
+    with (
+        LocalCluster(  # type: ignore[no-untyped-call]  # dask: unannotated
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+            # one worker per core: a worker's large LUs must not take a second thread
+            env={"HINGELAB_LU_THREADS": str(max(1, (os.cpu_count() or 1) // n))},
+        ) as cluster,
+        Client(cluster) as client,  # type: ignore[no-untyped-call]
+    ):
+        futures = _submit_pinned(client, points, run_point_task, lambda p: (settings, p, out))
+        _drain(client, futures, store)
+
+
+def run_on_scheduler(points: list[Any], settings: Any, out: Path, store: Store) -> None:
+    """Run points on the existing Dask cluster at ``settings.scheduler``.
+
+    Raises:
+        DataError: If the scheduler cannot be reached (naming the address and --scheduler).
+    """
+    from dask.distributed import Client
+
+    from fe.service import ResultStore
+    from studies.sweep import point_record
+
+    _quiet_dask()
+    spec = settings.spec()
+    results = ResultStore(out / "results")
+    try:
+        client = Client(settings.scheduler, timeout="10s", set_as_default=False)  # type: ignore[no-untyped-call]
+    except (OSError, TimeoutError) as err:
+        raise DataError(
+            f"--scheduler {settings.scheduler}: cannot connect to a Dask scheduler ({err})"
+        ) from err
+
+    def handle(value: dict[str, Any]) -> None:
+        run = value["run"]
+        if run.result is not None:
+            results.put(run.key, run.result)  # stored before it is recorded, as in-process
+        rec = point_record(
+            run, settings, out, mesh_stats=value["mesh_stats"], lu_threads=value["lu_threads"]
+        )
+        store(rec)
+
+    with client:
+        futures = _submit_pinned(client, points, run_point_remote, lambda p: (spec, p))
+        _drain(client, futures, handle)
