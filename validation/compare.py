@@ -8,15 +8,26 @@ stages, closing rule), then five errors are formed (``METRICS``):
 * ``rms_loop``: the RMS loop distance (``validation.loops.loop_distance``) divided by the
   measured δ_max, so it too is a fraction (≥ 0).
 
-Each is judged against the relative measurement uncertainty σ of that metric:
+Each is judged against the relative uncertainty σ of that metric. By default
+(``Uncertainty.RECORD``) it is the same uncertainty model that ``diagnose`` and
+``calibrate`` use (``validation.features``), so a model that diagnose accepts passes
+compare, and the reverse:
 
-* **from replicates**: when two or more cases share a design point (hinge, clearance,
-  preload, amplitude), σ is their sample standard deviation (ddof = 1) over |mean|; for
-  ``rms_loop`` it is ``sqrt(mean d_ij² / 2) / mean δ_max`` over the pairwise loop
-  distances d_ij (the distance of two independent draws has twice the variance);
-* **stated** otherwise: ``CompareSettings.default_rel_uncertainty`` for every metric;
-* never below ``CompareSettings.min_rel_uncertainty`` (two replicates that agree by
-  chance would otherwise demand an exact model).
+* the **noise of the record** (estimated from the loop, ``features.noise_sigma``),
+  propagated to δ_max and W; η and the secant stiffness combine the two;
+* ⊕ the **model floor** (``FeatureSettings.rel_floor``, ``eta_floor``);
+* ⊕ the **replicate scatter** when two or more cases share a design point (hinge,
+  clearance, preload, amplitude): their sample standard deviation (ddof = 1) over
+  |mean|; for ``rms_loop`` it is ``sqrt(mean d_ij² / 2) / mean δ_max`` over the pairwise
+  loop distances d_ij (the distance of two independent draws has twice the variance);
+* an η-only case has σ_η = ``FeatureSettings.eta_rel_sigma`` ⊕ floor ⊕ replicates (as
+  ``diagnose``); ``rms_loop`` has no noise model: replicates, else
+  ``default_rel_uncertainty``.
+
+``Uncertainty.STATED`` keeps the earlier rule: replicates if any, else
+``CompareSettings.default_rel_uncertainty`` for every metric. Either way σ is never below
+``CompareSettings.min_rel_uncertainty`` (two replicates that agree by chance would
+otherwise demand an exact model).
 
 A case **passes** when every available error satisfies ``|e| ≤ k σ`` (k = 2 by default:
 about 95 % coverage for a normal error). η-only cases have only the η error.
@@ -32,12 +43,14 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from enum import Enum
 from itertools import combinations
 from typing import Any
 
 import numpy as np
 
 from cad.errors import DataError, check_range
+from validation.features import FeatureSettings, feature_sigma, loop_features
 from validation.loops import ProcessedLoop, loop_distance, process_loop
 from validation.measurements import Case, Loop, MeasurementSet
 
@@ -56,20 +69,34 @@ METRIC_LABELS = {
 _LOOP_METRICS = METRICS[:4]
 
 
+class Uncertainty(Enum):
+    """Where a metric's σ comes from (module docstring)."""
+
+    RECORD = "record"
+    """Noise of the record ⊕ model floor ⊕ replicates: the model diagnose uses."""
+    STATED = "stated"
+    """Replicates if any, else one stated relative σ for every metric."""
+
+
 @dataclass(frozen=True)
 class CompareSettings:
     """How errors are judged.
 
     Attributes:
         k: Coverage factor: a metric passes when |error| ≤ k σ.
-        default_rel_uncertainty: Stated relative uncertainty σ of every metric of a
-            case without replicates.
+        default_rel_uncertainty: Stated relative σ: of every metric of a case without
+            replicates (``Uncertainty.STATED``), of ``rms_loop`` (``RECORD``).
         min_rel_uncertainty: Floor on σ.
+        uncertainty: Which uncertainty model (module docstring).
+        features: Model floor and stated η uncertainty of the ``RECORD`` model (the
+            settings diagnose and calibrate use).
     """
 
     k: float = 2.0
     default_rel_uncertainty: float = 0.05
     min_rel_uncertainty: float = 0.005
+    uncertainty: Uncertainty = Uncertainty.RECORD
+    features: FeatureSettings = field(default_factory=FeatureSettings)
 
     def __post_init__(self) -> None:
         check_range("k", self.k, 0.0, 10.0, lo_open=True)
@@ -170,7 +197,11 @@ class Comparison:
     def to_dict(self) -> dict[str, Any]:
         """Return a JSON-ready dict (no arrays)."""
         return {
-            "settings": vars(self.settings),
+            "settings": {
+                **{k: v for k, v in vars(self.settings).items() if k not in ("uncertainty", "features")},
+                "uncertainty": self.settings.uncertainty.value,
+                "features": vars(self.settings.features),
+            },
             "passed": self.passed,
             "summary": self.summary,
             "cases": [
@@ -225,6 +256,29 @@ def _replicate_sigma(
     return sigma
 
 
+def _record_sigma(
+    meas: ProcessedLoop | None, case: Case, rep: Mapping[str, float], s: CompareSettings
+) -> dict[str, float]:
+    """Relative σ per metric: noise of the record ⊕ model floor ⊕ replicates (as diagnose)."""
+    f = s.features
+    if meas is None:
+        eta = abs(float(case.eta or 0.0))
+        floor = f.rel_floor + f.eta_floor / max(eta, 1e-300)
+        return {"eta": math.sqrt(f.eta_rel_sigma**2 + floor**2 + rep.get("eta", 0.0) ** 2)}
+    sig = feature_sigma([meas], f, None)  # absolute: δ_max, W, opening (noise ⊕ floor)
+    feats = loop_features(meas)
+    r_delta = float(sig[0] / abs(feats[0]))
+    r_W = float(sig[1] / max(abs(feats[1]), 1e-300))
+    base = {
+        "disp_at_peak_mm": float(sig[0]) / max(abs(meas.metrics.disp_at_peak_mm), 1e-300),
+        "W_cycle_Nmm": r_W,
+        "eta": math.hypot(r_W, r_delta),
+        "secant_stiffness_N_per_mm": r_delta,
+        "rms_loop": s.default_rel_uncertainty if "rms_loop" not in rep else 0.0,
+    }
+    return {m: math.hypot(v, rep.get(m, 0.0)) for m, v in base.items()}
+
+
 def _case_errors(
     meas: ProcessedLoop | None, case: Case, model: ProcessedLoop
 ) -> tuple[dict[str, float], dict[str, float], dict[str, float], float | None]:
@@ -276,7 +330,12 @@ def compare(
         model = process_loop(res.loop.force_n, res.loop.displacement_mm, f"model:{cid}")
         mea, mod, errors, rms = _case_errors(loops[cid], case, model)
         rep, source = sigma_of[cid]
-        unc = {m: max(rep.get(m, s.default_rel_uncertainty), s.min_rel_uncertainty) for m in errors}
+        if s.uncertainty is Uncertainty.RECORD:
+            unc = _record_sigma(loops[cid], case, rep, s)
+            source = f"record ⊕ floor{' ⊕ ' + source if rep else ''}"
+        else:
+            unc = {m: rep.get(m, s.default_rel_uncertainty) for m in errors}
+        unc = {m: max(unc[m], s.min_rel_uncertainty) for m in errors}
         failed = tuple(m for m in METRICS if m in errors and not abs(errors[m]) <= s.k * unc[m])
         mod_all = {**mod, **{f"fe_{k}": float(v) for k, v in res.metrics.items()}}
         out.append(

@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 
 from cad.errors import DataError
-from validation.compare import CompareSettings, ModelResult, compare
+from validation.compare import CompareSettings, ModelResult, Uncertainty, compare
 from validation.measurements import Case, Loop, MeasurementSet
 from validation.plots import write_comparison_plots
 
 PHI = 0.08
+STATED = CompareSettings(uncertainty=Uncertainty.STATED)
 
 
 def ellipse_loop(fg, d, *, n=80, phi=PHI, noise=0.0, seed=0, source="loop"):
@@ -48,7 +49,7 @@ def test_identical_physics_passes_with_small_errors():
         ),
         Path("."),
     )
-    cmp = compare({"a": model(100.0, n=400), "b": model(300.0, n=400)}, ms)
+    cmp = compare({"a": model(100.0, n=400), "b": model(300.0, n=400)}, ms, STATED)
     assert cmp.passed
     for c in cmp.cases:
         assert c.uncertainty_source == "stated"
@@ -75,7 +76,7 @@ def test_wrong_displacement_scale_fails_on_displacement_not_eta():
 def test_replicates_give_the_uncertainty():
     loops = [ellipse_loop(200.0, d, n=2000) for d in (2.0e-3, 2.1e-3, 1.9e-3)]
     ms = MeasurementSet(tuple(case(f"r{i}", 200.0, lp) for i, lp in enumerate(loops)), Path("."))
-    cmp = compare({f"r{i}": model(200.0, n=400) for i in range(3)}, ms)
+    cmp = compare({f"r{i}": model(200.0, n=400) for i in range(3)}, ms, STATED)
     c = cmp.cases[0]
     assert c.uncertainty_source == "replicates (n=3)"
     disp = [lp_.displacement_mm for lp_ in loops]
@@ -112,8 +113,36 @@ def test_missing_model_result_refused():
 def test_k_changes_the_verdict():
     ms = MeasurementSet((case("a", 200.0, ellipse_loop(200.0, 1.08 * 2e-3, n=2000)),), Path("."))
     models = {"a": model(200.0, n=400)}
-    assert not compare(models, ms, CompareSettings(k=1.0)).passed
-    assert compare(models, ms, CompareSettings(k=2.0)).passed
+    assert not compare(models, ms, CompareSettings(k=1.0, uncertainty=Uncertainty.STATED)).passed
+    assert compare(models, ms, CompareSettings(k=2.0, uncertainty=Uncertainty.STATED)).passed
+
+
+def test_record_uncertainty_follows_the_noise_of_the_record():
+    """The default σ is the record's noise ⊕ the model floor: an 8 % δ error fails on a clean
+    record (σ ≈ the 2 % floor) and passes on one whose noise hides it."""
+    models = {"a": model(200.0, n=400)}
+    clean = MeasurementSet((case("a", 200.0, ellipse_loop(200.0, 1.08 * 2e-3, n=2000)),), Path("."))
+    noisy = MeasurementSet(
+        (case("a", 200.0, ellipse_loop(200.0, 1.08 * 2e-3, n=2000, noise=0.05, seed=3)),), Path(".")
+    )
+    c_clean = compare(models, clean).cases[0]
+    c_noisy = compare(models, noisy).cases[0]
+    assert c_clean.uncertainty_source == "record ⊕ floor"
+    assert c_clean.uncertainty["secant_stiffness_N_per_mm"] == pytest.approx(0.02, rel=0.05)
+    assert "disp_at_peak_mm" in c_clean.failed
+    assert c_noisy.uncertainty["secant_stiffness_N_per_mm"] > 2 * c_clean.uncertainty["secant_stiffness_N_per_mm"]
+    assert "secant_stiffness_N_per_mm" not in c_noisy.failed
+
+
+def test_eta_only_sigma_is_the_one_diagnose_uses():
+    from validation.candidate_fit import measured_features
+    from validation.features import FeatureSettings
+
+    ms = MeasurementSet(tuple(case(f"e{a:g}", a, eta=0.02 + a * 1e-4) for a in (100.0, 400.0)), Path("."))
+    cmp = compare({c.case_id: model(c.amplitude_n) for c in ms.cases}, ms)
+    meas = measured_features(ms, FeatureSettings())
+    for c, (eta, s_eta) in zip(cmp.cases, zip(meas.values[:, 1], meas.sigma[:, 1], strict=True), strict=True):
+        assert c.uncertainty["eta"] == pytest.approx(s_eta / eta, rel=1e-12)
 
 
 def test_to_dict_is_json_and_plots_are_written(tmp_path):
