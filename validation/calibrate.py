@@ -41,6 +41,9 @@ class LedgerRow:
         heldout_error: sqrt(held-out χ² / N) (the step's parameter fitted without the fold).
         aic: χ² + 2k.
         bic: χ² + k ln N.
+        model: Every parameter of the model after this step (``mu`` and
+            ``effect.parameter``), re-tuned earlier ones included: what the model file
+            written at this step holds.
     """
 
     step: str
@@ -51,6 +54,15 @@ class LedgerRow:
     heldout_error: float
     aic: float
     bic: float
+    model: dict[str, float] = dataclasses.field(default_factory=dict)
+
+
+def model_parameters(spec: ModelSpec) -> dict[str, float]:
+    """Return μ and every effect parameter of a model, as ``{"mu": …, "effect.param": …}``."""
+    out = {"mu": float(spec.cycle.mu)}
+    for name, params in sorted(spec.effects.items()):
+        out.update({f"{name}.{k}": float(v) for k, v in sorted(params.items())})
+    return out
 
 
 MU_RANGE = (0.02, 0.8)
@@ -103,7 +115,7 @@ def calibrate(
     base = ev.features({})
     c = chi2(base, meas)
     err = math.sqrt(c / n_feat)
-    rows = [LedgerRow("baseline", {}, 0, c, err, err, c, c)]
+    rows = [LedgerRow("baseline", {}, 0, c, err, err, c, c, model_parameters(spec))]
     k0 = 0
     if fit_mu:
         from validation.candidate_fit import _folds
@@ -130,6 +142,7 @@ def calibrate(
                 math.sqrt(held / n_feat),
                 c + 2,
                 c + math.log(n_feat),
+                model_parameters(spec),
             )
         )
     for k, name in enumerate(names, start=1 + k0):
@@ -150,6 +163,7 @@ def calibrate(
                 math.sqrt(held / n_feat),
                 c + 2 * k,
                 c + k * math.log(n_feat),
+                model_parameters(spec),
             )
         )
     return spec, rows
@@ -165,12 +179,13 @@ def append_ledger(out: Path, rows: Sequence[LedgerRow]) -> list[dict[str, Any]]:
         new = new[1:]  # the baseline of a later round is the last step of the previous one
     every = old + new
     path.write_text(json.dumps(every, indent=1, ensure_ascii=False) + "\n")
-    lines = ["step,params,n_params,chi2,error,heldout_error,aic,bic"]
+    lines = ["step,params,n_params,chi2,error,heldout_error,aic,bic,model"]
     for r in every:
         p = ";".join(f"{k}={v:.6g}" for k, v in r["params"].items())
+        m = ";".join(f"{k}={v:.6g}" for k, v in r.get("model", {}).items())
         lines.append(
             f"{r['step']},{p},{r['n_params']},{r['chi2']:.6g},{r['error']:.6g},"
-            f"{r['heldout_error']:.6g},{r['aic']:.6g},{r['bic']:.6g}"
+            f"{r['heldout_error']:.6g},{r['aic']:.6g},{r['bic']:.6g},{m}"
         )
     (out / "ledger.csv").write_text("\n".join(lines) + "\n")
     return every

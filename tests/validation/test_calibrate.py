@@ -81,3 +81,31 @@ def test_evaluator_set_mu_keeps_its_increments_and_takes_the_new_mu():
     assert ev.cycle.mu == 0.35
     assert ev.spec.cycle.mu == 0.35
     assert ev.cycle.increments_per_stage == 6  # the diagnosis protocol is kept
+
+
+def test_ledger_records_every_parameter_of_the_model(tmp_path):
+    """The ledger's model column is what the model file holds: re-tuned values included."""
+    import dataclasses
+
+    from cad.general import GeneralHingeParams
+    from validation.calibrate import model_parameters
+    from validation.model_file import ModelSpec, read_model, write_model
+
+    spec = ModelSpec(
+        "general",
+        GeneralHingeParams(),
+        effects={"frame_compliance": {"compliance_mm_per_n": 3.97e-5}, "interference": {"interference_mm": 0.002}},
+    )
+    spec = dataclasses.replace(spec, cycle=dataclasses.replace(spec.cycle, mu=0.17))
+    params = model_parameters(spec)
+    assert params == {
+        "mu": 0.17,
+        "frame_compliance.compliance_mm_per_n": 3.97e-5,
+        "interference.interference_mm": 0.002,
+    }
+    assert model_parameters(read_model(write_model(spec, tmp_path / "M.toml"))) == params
+    row = LedgerRow("+interference", {"interference.interference_mm": 0.002}, 2, 1.0, 1.0, 1.0, 5.0, 6.0, params)
+    append_ledger(tmp_path, [row])
+    header, line = (tmp_path / "ledger.csv").read_text().splitlines()
+    assert header.endswith(",model")
+    assert "frame_compliance.compliance_mm_per_n=3.97e-05" in line
