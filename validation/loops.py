@@ -11,9 +11,10 @@ follow; the last one is used). Every loop, measured or computed, goes through
    runs from the last-but-one positive peak through the last negative peak to the last
    positive peak.
 2. **Offsets** (``remove_offsets``): the *initial zero* is the run of leading samples
-   before the force first moves away from the first sample by more than a band: four times
-   the force noise (estimated from the median absolute second difference, which a
-   ramp does not change), capped at ``ZERO_FRACTION`` of the peak. A record that dwells
+   before the force or the displacement first moves away from its first sample by more
+   than a band: four times its noise (estimated from the median absolute second
+   difference, which a ramp does not change), capped at ``ZERO_FRACTION`` of its range
+   (with clearance the grips first cross 2Δr at zero force: that is travel, not offset). A record that dwells
    at zero before loading (as a test machine records) gets its whole dwell; a
    noise-free record (the model) gets its first sample only. The force offset is the
    median force of that run (a load cell that reads non-zero at zero load), the
@@ -183,21 +184,34 @@ def noise_level(values: FloatArray) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
-def initial_zero(force_n: FloatArray) -> int:
+def _first_departure(x: FloatArray) -> int | None:
+    """Index of the first sample that leaves the first one by more than the zero band."""
+    rise = float(np.max(np.abs(x - x[0])))
+    band = min(NOISE_BANDS * noise_level(x), ZERO_FRACTION * rise)
+    above = np.flatnonzero(np.abs(x - x[0]) > band)
+    return int(above[0]) if above.size else None
+
+
+def initial_zero(force_n: FloatArray, displacement_mm: FloatArray | None = None) -> int:
     """Return the length of the initial zero run (≥ 1 sample).
 
     Args:
         force_n: Raw force, shape (n,) [N].
+        displacement_mm: Raw displacement, shape (n,) [mm]; when given, the run also ends
+            where the crosshead first moves (with clearance the grips cross the first 2Δr
+            of free play at zero force: that travel is displacement, not offset).
 
     Returns:
-        Number of leading samples before the force first differs from its first sample
-        by more than ``min(NOISE_BANDS · noise, ZERO_FRACTION · max|F − F₀|)``.
+        Number of leading samples before the force (or the displacement) first differs
+        from its first sample by more than ``min(NOISE_BANDS · noise, ZERO_FRACTION ·
+        max|x − x₀|)``.
     """
-    F = np.asarray(force_n, dtype=np.float64)
-    rise = float(np.max(np.abs(F - F[0])))
-    band = min(NOISE_BANDS * noise_level(F), ZERO_FRACTION * rise)
-    above = np.flatnonzero(np.abs(F - F[0]) > band)
-    return int(above[0]) if above.size and above[0] > 0 else 1
+    starts = [_first_departure(np.asarray(force_n, dtype=np.float64))]
+    if displacement_mm is not None:
+        starts.append(_first_departure(np.asarray(displacement_mm, dtype=np.float64)))
+    found = [s for s in starts if s is not None]
+    first = min(found) if found else 0
+    return first if first > 0 else 1
 
 
 def split_stages(force_n: FloatArray, source: str) -> Stages:
@@ -299,7 +313,7 @@ def remove_offsets(
     """
     F = np.asarray(force_n, dtype=np.float64)
     d = np.asarray(displacement_mm, dtype=np.float64)
-    n0 = initial_zero(F)
+    n0 = initial_zero(F, d)
     f0 = float(np.median(F[:n0]))
     d0 = float(np.median(d[:n0]))
     return F - f0, d - d0, f0, d0

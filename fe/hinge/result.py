@@ -96,13 +96,16 @@ class CycleResult:
     def machine_path(self) -> tuple[FloatArray, FloatArray]:
         """Return the loop the grips follow, free play included: (force (n,) [N], δ (n,) [mm]).
 
-        Where the pin changes sides (at F = 0) the free play is crossed at zero force, so a
-        point at F = 0 in the new touching configuration is inserted; without it a loop
-        area would count a spurious F·4Δr trapezoid.
+        The path starts where the grips start, with the pin centred in its holes (δ = 0),
+        and crosses the first 2Δr to the tension touching configuration at zero force. Where
+        the pin changes sides (at F = 0) the free play is crossed at zero force, so a point
+        at F = 0 in the new touching configuration is inserted; without it a loop area
+        would count a spurious F·4Δr trapezoid.
         """
         F, d, _ = self.loop_arrays(with_free_play=True)
         side = np.array([1] + [i.side for i in self.increments])
-        F_out, d_out = [F[0]], [d[0]]
+        F_out, d_out = ([0.0], [0.0]) if d[0] != 0.0 else ([], [])
+        F_out, d_out = [*F_out, F[0]], [*d_out, d[0]]
         for k in range(1, len(F)):
             if side[k] != side[k - 1]:
                 F_out.append(0.0)
