@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from cad.errors import DataError, ParameterError
 from studies.pipeline import check_trace_db, check_writable_dir, dumps
 
 
@@ -196,10 +197,14 @@ def run(args: argparse.Namespace) -> int:
     progress = Progress(len(to_run), quiet=args.json)
     outcome = run_sweep(settings, out, on_point=progress, retry_failed=args.retry_failed)
     n_ok = outcome.ok + outcome.cached + outcome.skipped
-    fit = None
+    fit, not_fitted = None, None
     if study.surface is not None and outcome.table.is_file() and n_ok:
-        fit = fit_surface(study, outcome.table, outcome.db, out, not args.no_plots)
+        try:
+            fit = fit_surface(study, outcome.table, outcome.db, out, not args.no_plots)
+        except (DataError, ParameterError) as err:  # too few ok points for the degree
+            not_fitted = f"surface not fitted: {err}"
     summary = _summary(study, outcome, fit, args)
+    summary["surface_not_fitted"] = not_fitted
     if args.json:
         print(dumps(summary))
     else:
@@ -267,5 +272,7 @@ def _summary_text(s: dict[str, Any]) -> str:
             lines.append(f"  warning: {w}")
         if f["plots"]:
             lines.append(f"  plots in {Path(next(iter(f['plots'].values()))).parent}/")
+    if s.get("surface_not_fitted"):
+        lines.append(f"  {s['surface_not_fitted']}")
     lines.append(f"next: {s['next']}")
     return "\n".join(lines)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -26,12 +27,24 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "sweep", help="run the cycle over a clearance × amplitude grid (resumable, Dask)"
     )
     p.add_argument(
-        "--clearance", default="0,0.1,0.2,0.3,0.4", metavar="LIST", help="clearances [mm]"
+        "--clearance",
+        default="0,0.1,0.2,0.3,0.4",
+        metavar="LIST",
+        help="clearances [mm] (default 0,0.1,0.2,0.3,0.4)",
     )
     p.add_argument(
-        "--amplitude", default="100,200,300,400,500", metavar="LIST", help="amplitudes [N]"
+        "--amplitude",
+        default="100,200,300,400,500",
+        metavar="LIST",
+        help="amplitudes [N] (default 100,200,300,400,500)",
     )
-    p.add_argument("--mu", type=float, default=DEFAULT_MU, metavar="X", help="friction coefficient")
+    p.add_argument(
+        "--mu",
+        type=float,
+        default=DEFAULT_MU,
+        metavar="X",
+        help=f"friction coefficient (default {DEFAULT_MU})",
+    )
     p.add_argument(
         "--increments",
         type=int,
@@ -40,10 +53,23 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="increments per half cycle (default 20 at zero clearance, 60 with clearance)",
     )
     p.add_argument(
-        "--workers", type=int, default=1, metavar="N", help="Dask worker processes (1: in process)"
+        "--workers",
+        type=int,
+        default=1,
+        metavar="N",
+        help="local Dask worker processes (default 1: in this process)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=os.environ.get("DASK_SCHEDULER_ADDRESS"),
+        metavar="ADDRESS",
+        help="run on an existing Dask cluster, e.g. tcp://host:8786 "
+        "(default: $DASK_SCHEDULER_ADDRESS, else no cluster)",
     )
     add_mesh_arguments(p)
-    p.add_argument("--study", default="general_hinge", help="study name in the trace")
+    p.add_argument(
+        "--study", default="general_hinge", help="study name in the trace (default general_hinge)"
+    )
     p.add_argument(
         "--out", type=Path, required=True, metavar="DIR", help="output folder (rerun to resume)"
     )
@@ -62,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
         mesh=settings_from_args(args),
         workers=args.workers,
         study=args.study,
+        scheduler=args.scheduler or None,
     )
 
     def report(rec: dict[str, object]) -> None:

@@ -146,7 +146,7 @@ def run_on_scheduler(points: list[Any], settings: Any, out: Path, store: Store) 
     spec = settings.spec()
     results = ResultStore(out / "results")
     try:
-        client = Client(settings.scheduler, timeout="10s", set_as_default=False)  # type: ignore[no-untyped-call]
+        client = Client(settings.scheduler, timeout="10s")  # type: ignore[no-untyped-call]
     except (OSError, TimeoutError) as err:
         raise DataError(
             f"--scheduler {settings.scheduler}: cannot connect to a Dask scheduler ({err})"

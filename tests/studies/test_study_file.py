@@ -1,0 +1,179 @@
+"""Study files: validated on load (before any meshing), designs of experiments, the ``study`` command."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from cad.errors import ParameterError
+from studies.cli import main
+from studies.study_file import read_study
+
+EXAMPLES = Path(__file__).parents[2] / "studies" / "examples"
+
+ONE_CLEARANCE = """
+[study]
+name = "fast"
+[mesh]
+preset = "coarse"
+[solver]
+increments = 6
+[design]
+type = "full_factorial"
+[design.clearance_mm]
+levels = [0.0]
+[design.amplitude_N]
+levels = [200.0, 400.0]
+[surface]
+x = ["amplitude_N"]
+y = "eta"
+degree = 1
+"""
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "study.toml"
+    path.write_text(text)
+    return path
+
+
+def test_shipped_examples_load():
+    coarse = read_study(EXAMPLES / "coarse_2x2.toml")
+    assert len(coarse.points) == 4
+    assert coarse.spec.mesh.size_mm == 4.0  # the coarse preset
+    assert coarse.spec.cycle.increments_per_stage == coarse.spec.cycle.clearance_increments == 6
+    paper = read_study(EXAMPLES / "paper_general_5x5.toml")
+    assert len(paper.points) == 25
+    assert paper.points[:2] == ((0.0, 100.0), (0.0, 200.0))  # the paper's row order
+    assert paper.surface is not None
+    assert paper.surface.degree == 4
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (
+            ("[solver]", "[solver]\nmuu = 0.3"),
+            r"\[solver\] unknown key\(s\) \['muu'\]; allowed: .*mu",
+        ),
+        (
+            ("increments = 6", "increments = 6\nmu = -0.1"),
+            r"\[solver\] mu must be in \[0, 2\], got -0.1",
+        ),
+        (("increments = 6", 'increments = "six"'), r"increments must be an integer, got 'six'"),
+        (
+            ("[200.0, 400.0]", "[200.0, -5.0]"),
+            r"point 2 \(clearance_mm = 0, amplitude_N = -5\): amplitude_n",
+        ),
+        (
+            ('preset = "coarse"', 'preset = "tiny"'),
+            r"preset must be one of \['default', 'coarse'\], got 'tiny'",
+        ),
+        (
+            ("degree = 1", "degree = 2"),
+            r"degree 2 in 1 variables has 3 terms, but the design has only 2 points",
+        ),
+        (('y = "eta"', 'y = "etta"'), r"y must be one of \['eta'"),
+        (('type = "full_factorial"', 'type = "sobol"'), r"type must be one of"),
+        (
+            ("[design.amplitude_N]", "[design.force_N]"),
+            r"\[design\] unknown key\(s\) \['force_N'\]",
+        ),
+    ],
+    ids=[
+        "unknown-key",
+        "mu-range",
+        "wrong-type",
+        "bad-amplitude",
+        "preset",
+        "too-few-points",
+        "response",
+        "design-type",
+        "variable",
+    ],
+)
+def test_bad_study_refused_by_key_value_and_range(tmp_path, edit, message):
+    path = _write(tmp_path, ONE_CLEARANCE.replace(*edit, 1))
+    with pytest.raises(ParameterError, match=message):
+        read_study(path)
+
+
+def test_latin_hypercube_and_central_composite(tmp_path):
+    lhs = _write(
+        tmp_path,
+        '[design]\ntype = "latin_hypercube"\nsamples = 7\nseed = 3\n'
+        "[design.clearance_mm]\nmin = 0.0\nmax = 0.3\n[design.amplitude_N]\nmin = 100.0\nmax = 500.0\n",
+    )
+    s = read_study(lhs)
+    assert len(s.points) == 7
+    assert all(0.0 <= c <= 0.3 and 100.0 <= a <= 500.0 for c, a in s.points)
+    assert read_study(lhs).points == s.points  # seeded: repeatable
+    ccd = lhs.read_text().replace(
+        '"latin_hypercube"\nsamples = 7\nseed = 3', '"central_composite"\nface = "faced"'
+    )
+    lhs.write_text(ccd)
+    assert sorted(set(read_study(lhs).points)) == sorted(
+        (c, a) for c in (0.0, 0.15, 0.3) for a in (100.0, 300.0, 500.0)
+    )  # faced: the 3 × 3 grid of the box
+    # circumscribed puts axial points outside the box: a negative clearance is refused on load
+    lhs.write_text(ccd.replace('"faced"', '"circumscribed"'))
+    with pytest.raises(ParameterError, match=r"\[design\] point \d+ \(clearance_mm = -"):
+        read_study(lhs)
+
+
+def test_dry_run_lists_points_without_meshing(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert (
+        main(["study", str(EXAMPLES / "coarse_2x2.toml"), "--out", str(out), "--dry-run", "--json"])
+        == 0
+    )
+    report = json.loads(capsys.readouterr().out)
+    assert report["counts"] == {"todo": 4}
+    assert not (out / "geometry").exists()
+
+
+def test_bad_study_is_one_line_and_exit_1(tmp_path, capsys):
+    path = _write(tmp_path, ONE_CLEARANCE.replace("levels = [0.0]", "levels = [0.0, 12.0]"))
+    assert main(["study", str(path), "--out", str(tmp_path / "o")]) == 1
+    err = capsys.readouterr().err
+    assert "clearance_mm" in err
+    assert "12" in err
+    assert "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()  # refused before anything was created
+
+
+def test_study_runs_fits_retries_failed(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("gmsh")
+    from cad.errors import ConvergenceError
+    from fe.service.runner import ModelService
+
+    path = _write(tmp_path, ONE_CLEARANCE)
+    out = tmp_path / "out"
+    real = ModelService._compute
+
+    def fail_400(self, spec, point, prepared, progress):
+        if point.amplitude_n == 400.0:
+            raise ConvergenceError("refused by the test", increment=1, iteration=60, residual=1.0)
+        return real(self, spec, point, prepared, progress)
+
+    monkeypatch.setattr(ModelService, "_compute", fail_400)
+    assert main(["study", str(path), "--out", str(out), "--json"]) == 1
+    first = json.loads(capsys.readouterr().out)
+    assert (first["computed"], first["failed"]) == (1, 1)
+    assert "--retry-failed" in first["next"]
+    monkeypatch.setattr(ModelService, "_compute", real)
+    assert main(["study", str(path), "--out", str(out), "--dry-run", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["counts"] == {"done": 1, "failed": 1}
+    assert main(["study", str(path), "--out", str(out), "--retry-failed"]) == 0
+    captured = capsys.readouterr()
+    assert "[1/1]" in captured.err  # only the failed point ran
+    assert "next: hingelab trace" in captured.out
+    fit = json.loads((out / "rsm" / "fit.json").read_text())
+    assert fit["n_points"] == 2
+    # zero clearance: η does not depend on the amplitude, so the fitted slope vanishes
+    slope = fit["coefficients"][1]["coefficient"]
+    assert abs(slope) * 200.0 < 1e-6 * abs(fit["coefficients"][0]["coefficient"])
+    assert (out / "study.toml").is_file()
