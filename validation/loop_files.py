@@ -36,7 +36,7 @@ LENGTH_UNITS: dict[str, float] = {
 }
 """Length units → factor to mm."""
 
-TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "min": 60.0}
+TIME_UNITS: dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "min": 60.0}
 """Time units → factor to s."""
 
 TEMPERATURE_UNITS: dict[str, float] = {"C": 1.0}
@@ -261,7 +261,9 @@ def read_bluehill(path: Path | str) -> Loop:
     ``Load``/``Force`` as the force, ``Time`` as the time; others are ignored (they are
     named in no output, but a Bluehill export usually carries a few). Units are
     converted to N, mm, s (force: N, kN, mN, lbf; length: mm, µm/um, m, in; time: s,
-    ms, min); any other unit is refused by name. Numbers may use thousands separators.
+    sec, ms, min); any other unit is refused by name. Numbers may use thousands
+    separators, and decimal commas (``"0,0021"``; a ``;``-separated export, as Bluehill
+    writes in decimal-comma locales, reads every comma as the decimal mark).
 
     Args:
         path: The exported file.
@@ -277,7 +279,9 @@ def read_bluehill(path: Path | str) -> Loop:
     if not path.is_file():
         raise DataError(f"{path}: file not found")
     with open(path, newline="", encoding="utf-8-sig") as fh:
-        lines = [[c.strip() for c in row] for row in csv.reader(fh)]
+        text = fh.read()
+    delimiter = _bluehill_delimiter(text)
+    lines = [[c.strip() for c in row] for row in csv.reader(text.splitlines(), delimiter=delimiter)]
     start = None
     for i in range(len(lines) - 1):
         units = _parse_units_row(lines[i + 1]) if any(lines[i + 1]) else None
@@ -309,7 +313,12 @@ def read_bluehill(path: Path | str) -> Loop:
                 f"(known: {', '.join(table)})"
             )
         columns[quantity] = (
-            np.array([_bluehill_number(path, line, row, j, lines[start][j]) for line, row in data])
+            np.array(
+                [
+                    _bluehill_number(path, line, row, j, lines[start][j], delimiter)
+                    for line, row in data
+                ]
+            )
             * table[unit]
         )
     if len(data) < 4:
@@ -317,10 +326,36 @@ def read_bluehill(path: Path | str) -> Loop:
     return Loop(columns["force"], columns["displacement"], columns.get("time"), str(path))
 
 
-def _bluehill_number(path: Path, line: int, row: Sequence[str], j: int, name: str) -> float:
+_THOUSANDS = re.compile(r"[+-]?[1-9]\d{0,2}(,\d{3})+(\.\d*)?([eE][+-]?\d+)?")
+_DECIMAL_COMMA = re.compile(r"[+-]?\d*,\d+([eE][+-]?\d+)?")
+
+
+def _bluehill_delimiter(text: str) -> str:
+    """``;`` when the unit row is semicolon-separated (a decimal-comma locale), else ``,``."""
+    for line in text.splitlines()[:200]:
+        cells = [c.strip().strip('"') for c in line.split(";")]
+        if len(cells) >= 2 and all(re.fullmatch(r"\(.*\)", c) for c in cells):
+            return ";"
+    return ","
+
+
+def _bluehill_number(
+    path: Path, line: int, row: Sequence[str], j: int, name: str, delimiter: str = ","
+) -> float:
+    """One value; a decimal comma (``0,25``, or any comma in a ``;`` file) reads as a point.
+
+    In a comma-separated file ``1,234.5`` and ``12,345`` are thousands separators, and
+    ``0,002125`` (no valid grouping) a decimal comma.
+    """
     if j >= len(row):
         raise DataError(f"{path}: line {line}, column {name}: missing value")
-    return _finite(row[j].replace(",", ""), f"{path}: line {line}, column {name}", row[j])
+    text = row[j]
+    if "," in text:
+        if delimiter == ";" or (_DECIMAL_COMMA.fullmatch(text) and not _THOUSANDS.fullmatch(text)):
+            text = text.replace(".", "").replace(",", ".")  # 1.234,5 → 1234.5
+        else:
+            text = text.replace(",", "")
+    return _finite(text, f"{path}: line {line}, column {name}", row[j])
 
 
 def read_loop_file(path: Path | str) -> Loop:
@@ -335,5 +370,7 @@ def read_loop_file(path: Path | str) -> Loop:
     with open(path, newline="", encoding="utf-8-sig") as fh:
         head = [row for row, _ in zip(csv.reader(fh), range(200), strict=False)]
     if any(_parse_units_row(r) is not None for r in head if any(r)):
+        return read_bluehill(path)
+    if _bluehill_delimiter(path.read_text(encoding="utf-8-sig")) == ";":  # decimal-comma locale
         return read_bluehill(path)
     return read_loop_csv(path)
