@@ -118,15 +118,21 @@ class SynthCase:
     amplitude_n: float
 
 
-def finer_mesh(mesh: MeshSettings) -> MeshSettings:
-    """Return the mesh the synthetic data are computed on (``MESH_RULE``)."""
+def finer_mesh(mesh: MeshSettings, arc_factor: float = ARC_GRADING_FACTOR) -> MeshSettings:
+    """Return the mesh the synthetic data are computed on (``MESH_RULE``).
+
+    Args:
+        mesh: The model's mesh settings.
+        arc_factor: Factor on the arc grading (``ARC_GRADING_FACTOR``; ``synthesize``
+            falls back to its inverse where the stronger grading distorts an element).
+    """
     contact = mesh.contact_size_mm * CONTACT_SIZE_FACTOR
     return dataclasses.replace(
         mesh,
         size_mm=max(mesh.size_mm * GLOBAL_SIZE_FACTOR, contact),
         contact_size_mm=contact,
         part_sizes_mm=tuple((n, s * GLOBAL_SIZE_FACTOR) for n, s in mesh.part_sizes_mm),
-        arc_grading=min(mesh.arc_grading * ARC_GRADING_FACTOR, 100.0),
+        arc_grading=min(max(mesh.arc_grading * arc_factor, 1.0), 100.0),
     )
 
 
@@ -276,11 +282,82 @@ def synthesize(
     Returns:
         The folder and the manifest.
 
+    The set is written into a temporary folder beside ``out`` and renamed into place when
+    every case is done, so a failure leaves no partial set; an existing ``out`` is replaced
+    only if it is a synthetic set itself (it has a ``manifest.json``) or empty.
+
     Raises:
-        ParameterError: A bad effect, a non-general hinge, or an effect refused at a case.
+        ParameterError: A bad effect, a non-general hinge, an effect refused at a case, or
+            an ``out`` that is a non-empty folder of something else.
+        MeshQualityError: The data mesh has a distorted element with both arc gradings
+            (the message names the clearance and what to change).
     """
+    import shutil
+
+    if out.exists() and any(out.iterdir()) and not (out / "manifest.json").is_file():
+        raise ParameterError(
+            f"--out {out} is a non-empty folder that is not a synthetic set: choose another"
+        )
+    tmp = out.parent / f".{out.name}.partial"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    try:
+        report = _synthesize(spec, hidden, cases, settings, tmp)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    if out.exists():
+        shutil.rmtree(out)
+    tmp.rename(out)
+    return SynthReport(out, report.manifest)
+
+
+def _data_run(
+    service: Any, data_spec: Any, case: SynthCase, adapted: dict[float, str]
+) -> tuple[Any, Any, Any]:
+    """Run one case on the data mesh; where its arc grading distorts an element, grade less.
+
+    Returns:
+        (cycle result, prepared geometry, the spec used).
+    """
+    from cad.errors import MeshQualityError
+    from fe.service import DesignPoint
+
+    point = DesignPoint(case.amplitude_n, case.clearance_mm)
+    try:
+        return service.run_point(data_spec, point), service.prepare(data_spec, case.clearance_mm), data_spec
+    except MeshQualityError as err:
+        model_mesh = data_spec.mesh  # already finer: rebuild from its own rule
+        softer = dataclasses.replace(
+            model_mesh,
+            arc_grading=max(1.0, model_mesh.arc_grading / ARC_GRADING_FACTOR**2),
+        )
+        alt = dataclasses.replace(data_spec, mesh=softer)
+        try:
+            result = service.run_point(alt, point)
+        except MeshQualityError as err2:
+            raise MeshQualityError(
+                f"the synthetic-data mesh (contact size × {CONTACT_SIZE_FACTOR}, arc grading × "
+                f"{ARC_GRADING_FACTOR} or ÷ {ARC_GRADING_FACTOR}) has a distorted element at "
+                f"Δr = {case.clearance_mm:g} mm ({err2}); give the model a finer mesh "
+                "([mesh] size_mm / contact_size_mm) or less arc_grading"
+            ) from err
+        adapted[case.clearance_mm] = (
+            f"arc grading {model_mesh.arc_grading:g} distorted an element ({err}); "
+            f"used {softer.arc_grading:g}"
+        )
+        return result, service.prepare(alt, case.clearance_mm), alt
+
+
+def _synthesize(
+    spec: ModelSpec,
+    hidden: Mapping[str, Mapping[str, float]],
+    cases: Sequence[SynthCase],
+    settings: SynthSettings,
+    out: Path,
+) -> SynthReport:
     from fe.effects import validate_effects
-    from fe.service import DesignPoint, ModelService
+    from fe.service import ModelService
 
     if spec.kind != "general":
         raise ParameterError(f"synth supports hinge kind 'general' only, got {spec.kind!r}")
@@ -303,9 +380,9 @@ def synthesize(
     index = {c.case_id: i for i, c in enumerate(cases)}
     service = ModelService()
     ordered = sorted(cases, key=lambda c: c.clearance_mm)
+    adapted: dict[float, str] = {}
     for case in ordered:
-        result = service.run_point(data_spec, DesignPoint(case.amplitude_n, case.clearance_mm))
-        prepared = service.prepare(data_spec, case.clearance_mm)
+        result, prepared, _used = _data_run(service, data_spec, case, adapted)
         F, d = machine_path(result)
         m = measure(F, d, settings, index[case.case_id])
         loop_file = f"loops/{case.case_id}.csv"
@@ -340,6 +417,7 @@ def synthesize(
         "model_mesh": dataclasses.asdict(spec.mesh),
         "synth_mesh": dataclasses.asdict(mesh_settings),
         "mesh_rule": MESH_RULE,
+        "mesh_adapted": {f"{c:g}": why for c, why in adapted.items()},
         "model_increments_per_stage": spec.cycle.increments_per_stage,
         "synth_increments_per_stage": n_inc,
         "measurement": dataclasses.asdict(settings),

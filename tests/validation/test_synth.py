@@ -170,3 +170,55 @@ def test_true_model_passes_compare_on_synthetic_data_with_clearance(tmp_path):
     models, _ = run_model_for_cases(spec, data.cases)
     (case,) = compare(models, data).cases
     assert abs(case.errors["disp_at_peak_mm"]) < 0.05, case.errors
+
+
+def _coarse_spec():
+    from cad.general import GeneralHingeParams
+    from fe.hinge.protocol import CycleSettings
+    from mesh.settings import MeshSettings
+    from validation.model_file import ModelSpec
+
+    return ModelSpec(
+        "general",
+        GeneralHingeParams(),
+        MeshSettings.coarse(),
+        CycleSettings(increments_per_stage=6, clearance_increments=6),
+    )
+
+
+def test_synth_adapts_a_data_mesh_that_distorts_and_says_so(tmp_path):
+    """On the coarse mesh at Δr = 0.3 mm the ×1.5 arc grading gives a scaled Jacobian of
+    0.049: the data mesh is graded less there, the manifest says why, the set is complete."""
+    pytest.importorskip("gmsh")
+    from validation.synth import design_cases, synthesize
+
+    out = tmp_path / "set"
+    report = synthesize(_coarse_spec(), {}, design_cases([(0.3, (200.0,))]), SynthSettings(seed=1), out)
+    assert "0.3" in report.manifest["mesh_adapted"]
+    assert "scaled Jacobian" in report.manifest["mesh_adapted"]["0.3"]
+    assert (out / "cases.csv").is_file()
+    assert (out / "loops" / "dr0.3mm_F200N.csv").is_file()
+
+
+def test_a_failing_synth_leaves_no_partial_set(tmp_path, monkeypatch):
+    import validation.synth as synth
+
+    calls = []
+
+    def fail_second(service, data_spec, case, adapted):
+        calls.append(case)
+        if len(calls) == 2:
+            raise synth.ParameterError("refused by the test")
+        return real(service, data_spec, case, adapted)
+
+    real = synth._data_run
+    monkeypatch.setattr(synth, "_data_run", fail_second)
+    out = tmp_path / "set"
+    with pytest.raises(synth.ParameterError, match="refused by the test"):
+        synth.synthesize(_coarse_spec(), {}, synth.design_cases([(0.0, (100.0, 200.0))]), SynthSettings(), out)
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep")
+    with pytest.raises(synth.ParameterError, match="not a synthetic set"):
+        synth.synthesize(_coarse_spec(), {}, synth.design_cases([(0.0, (100.0,))]), SynthSettings(), tmp_path / "mine")
