@@ -8,7 +8,11 @@ iteration. Each solver runs as its own process, one at a time, ccx on one thread
 memory is the process's maximum resident set (``wait4``).
 
 Run:
-    .venv/bin/python benchmarks/bench_calculix.py [coarse,default] [timeout_s]
+    .venv/bin/python benchmarks/bench_calculix.py [coarse,default] [timeout_s] [mu] [ccx_steps]
+
+``ccx_steps`` < 3 runs ccx on the first steps only (ours always runs the whole cycle): ccx
+does not finish the cycle (docs/calculix_crosscheck.md), so its first loading is a
+lower bound of its cost.
     .venv/bin/python benchmarks/bench_calculix.py penalty   # frictionless δ(+Fg) vs slope
 
 The table goes into docs/calculix_crosscheck.md.
@@ -34,7 +38,7 @@ MU = 0.2
 PENALTIES = (1e4, 1e5, 1e6, 1e7, 1e8)
 
 
-def model_file(folder: Path, mesh: str, clearance_mm: float = 0.0) -> Path:
+def model_file(folder: Path, mesh: str, clearance_mm: float = 0.0, mu: float = MU) -> Path:
     """Write the benchmark's MODEL.toml (coarse or default mesh)."""
     from cad.general import GeneralHingeParams
     from fe.hinge.cycle import CycleSettings
@@ -46,7 +50,7 @@ def model_file(folder: Path, mesh: str, clearance_mm: float = 0.0) -> Path:
         "general",
         GeneralHingeParams(clearance_mm=clearance_mm),
         settings,
-        CycleSettings(amplitude_n=AMPLITUDE_N, mu=MU),
+        CycleSettings(amplitude_n=AMPLITUDE_N, mu=mu),
     )
     return write_model(spec, folder / f"{mesh}.toml")
 
@@ -73,9 +77,11 @@ def timed(cmd: list[str], timeout_s: float, cwd: Path | None = None) -> tuple[fl
         time.sleep(0.1)
 
 
-def compare(mesh: str, folder: Path, timeout_s: float) -> dict[str, object]:
-    """Run both solvers on one mesh; return a table row."""
-    toml = model_file(folder, mesh)
+def compare(
+    mesh: str, folder: Path, timeout_s: float, mu: float, steps: int = 3
+) -> dict[str, object]:
+    """Run both solvers on one mesh (ccx on the first ``steps`` steps); return a table row."""
+    toml = model_file(folder, mesh, mu=mu)
     out = folder / f"ours_{mesh}"
     hingelab = str(ROOT / ".venv" / "bin" / "hingelab")
     ours_s, ours_mb, rc = timed(
@@ -95,21 +101,26 @@ def compare(mesh: str, folder: Path, timeout_s: float) -> dict[str, object]:
     result = json.loads((out / "result.json").read_text()) if rc == 0 else {}
     deck = folder / f"ccx_{mesh}" / "hinge.inp"
     subprocess.run(
-        [hingelab, "export-inp", str(toml), "--out", str(deck)], check=True, capture_output=True
+        [hingelab, "export-inp", str(toml), "--out", str(deck), "--steps", str(steps)],
+        check=True,
+        capture_output=True,
     )
     ccx_s, ccx_mb, ccx_rc = _ccx(deck, timeout_s)
     sta = deck.with_suffix(".sta")
-    lines = sta.read_text().splitlines()[1:] if sta.exists() else []
+    rows = [ln.split() for ln in sta.read_text().splitlines()] if sta.exists() else []
+    rows = [r for r in rows if len(r) > 3 and r[0].isdigit()]  # skip the two header lines
     return {
         "mesh": mesh,
+        "mu": mu,
+        "ccx_steps": steps,
         "n_hex": result.get("n_hex", ""),
         "n_dof_ours": result.get("n_dof", ""),
         "ours_s": ours_s,
         "ours_MB": ours_mb,
         "ccx_s": ccx_s,
         "ccx_MB": ccx_mb,
-        "ccx_incs": len(lines),
-        "ccx_iters": sum(int(ln.split()[3].rstrip("U")) for ln in lines if len(ln.split()) > 3),
+        "ccx_incs": sum(not r[2].endswith("U") for r in rows),
+        "ccx_iters": sum(int(r[3]) for r in rows),
         "ccx_ok": ccx_rc == 0,
         "time_ratio": ccx_s / ours_s,
         "mem_ratio": ccx_mb / ours_mb,
@@ -193,11 +204,15 @@ if __name__ == "__main__":
         else:
             meshes = (args[0] if args else "coarse,default").split(",")
             timeout = float(args[1]) if len(args) > 1 else 7200.0
-            rows = [compare(m, Path(tmp), timeout) for m in meshes]
+            mu = float(args[2]) if len(args) > 2 else MU
+            steps = int(args[3]) if len(args) > 3 else 3
+            rows = [compare(m, Path(tmp), timeout, mu, steps) for m in meshes]
             print_table(
                 rows,
                 [
                     "mesh",
+                    "mu",
+                    "ccx_steps",
                     "n_hex",
                     "n_dof_ours",
                     "ours_s",
