@@ -56,7 +56,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         type=float,
         default=0.05,
         metavar="U",
-        help="compare: relative uncertainty of cases without replicates (default 0.05)",
+        help="stated relative σ of η-only cases, for the fit and the comparison (default 0.05)",
     )
     p.add_argument("--no-compare", action="store_true", help="do not re-run the comparison")
     p.set_defaults(func=run)
@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     if not names and not args.mu:
         raise ParameterError("calibrate: give --effects NAME[,NAME] and/or --mu")
     settings = DiagnoseSettings(
-        features=FeatureSettings(rel_floor=args.model_error),
+        features=FeatureSettings(rel_floor=args.model_error, eta_rel_sigma=args.uncertainty),
         increments_per_stage=args.increments,
         clearance_increments=2 * args.increments,
     )
@@ -111,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
 def _compare(spec: ModelSpec, data: MeasurementSet, args: argparse.Namespace) -> dict[str, object]:
     """Re-run the comparison with the calibrated model into ``args.out/compare``; its summary."""
     from validation.compare import CompareSettings
+    from validation.features import FeatureSettings
     from validation.workflow import compare_and_write
 
     folder = args.out / "compare"
@@ -118,7 +119,10 @@ def _compare(spec: ModelSpec, data: MeasurementSet, args: argparse.Namespace) ->
         spec,
         data,
         folder,
-        CompareSettings(default_rel_uncertainty=args.uncertainty),
+        CompareSettings(
+            default_rel_uncertainty=args.uncertainty,
+            features=FeatureSettings(rel_floor=args.model_error, eta_rel_sigma=args.uncertainty),
+        ),
     )
     return {
         "n_pass": cmp.summary["n_pass"],

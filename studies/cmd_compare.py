@@ -42,7 +42,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         type=float,
         default=0.05,
         metavar="U",
-        help="relative uncertainty of cases without replicates (default 0.05)",
+        help="stated relative σ of η-only cases and of the loop distance (default 0.05); loop "
+        "metrics use the record's noise ⊕ model floor ⊕ replicates, as diagnose",
     )
     p.add_argument(
         "--without-free-play",
@@ -67,7 +68,13 @@ def run(args: argparse.Namespace) -> int:
 
     spec = read_model(args.model)
     data = read_measurement_set(args.data)
-    settings = CompareSettings(k=args.k, default_rel_uncertainty=args.uncertainty)
+    from validation.features import FeatureSettings
+
+    settings = CompareSettings(
+        k=args.k,
+        default_rel_uncertainty=args.uncertainty,
+        features=FeatureSettings(eta_rel_sigma=args.uncertainty),
+    )
     check_writable_dir(args.out, "--out")  # before the model runs, not after
     cmp, report = compare_and_write(
         spec,
@@ -122,11 +129,9 @@ def format_table(cmp: Comparison) -> str:
                 cells.append(f"{c.errors[m] * 100:+.1f}%{mark}")
             else:
                 cells.append("—")
-        sig = {f"{v * 100:.1f}%" for v in c.uncertainty.values()}
-        cells.append(
-            ("/".join(sorted(sig)) if len(sig) < 3 else "replicates")
-            + ("" if c.uncertainty_source == "stated" else " (rep)")
-        )
+        src = c.uncertainty_source
+        tag = "rep" if "replicates" in src else ("record" if src.startswith("record") else "stated")
+        cells.append(f"η {c.uncertainty['eta'] * 100:.1f}% ({tag})")
         cells.append("pass" if c.passed else "FAIL")
         rows.append(cells)
     widths = [max(len(r[i]) for r in rows) for i in range(len(heads))]
