@@ -8,11 +8,15 @@ from xml.sax.saxutils import quoteattr
 
 import meshio
 import numpy as np
+import numpy.typing as npt
 
 from fe.assembly import stress_field
 from fe.element import ElementType, von_mises
 from fe.hinge.cycle import CycleResult, increment_displacements
 from fe.hinge.system import HingeSystem
+from mesh.io import add_vtu_field_data, vtu_name_codes
+
+FloatArray = npt.NDArray[np.float64]
 
 LOOP_COLUMNS = ("force_N", "displacement_mm", "stage", "increment", "side")
 """Columns of loop.csv; the first two are those of a measured loop."""
@@ -84,6 +88,13 @@ def write_loop_png(result: CycleResult, path: Path, *, title: str = "") -> Path:
     return path
 
 
+def load_path(result: CycleResult) -> FloatArray:
+    """Load-path parameter ``τ = Σ|ΔF| / Fg`` at the origin and every increment, shape (n+1,)."""
+    F, _, _ = result.loop_arrays()
+    steps = np.abs(np.diff(F)) / result.settings.amplitude_n
+    return np.concatenate([[0.0], np.cumsum(steps)])
+
+
 def write_time_series(
     system: HingeSystem,
     result: CycleResult,
@@ -97,7 +108,12 @@ def write_time_series(
     Point data: ``displacement`` [mm], ``contact_pressure`` [MPa] and ``slip`` [mm]
     (tangential relative displacement since the start of the configuration) on the
     pin's contact nodes. Cell data: ``stress`` (Voigt, [MPa]), ``von_mises`` [MPa], ``part``.
-    The time value is the increment index; ``force_N`` is stored as field data.
+    Field data of every frame: ``force_N``, ``grip_disp_mm``, ``stage``, ``load_path``, and
+    the names of the part and set codes (``part:NAME``, ``set:NAME``).
+
+    The time value of a frame is the load path ``τ = Σ|ΔF| / Fg`` (ParaView needs times
+    that increase, and the force goes up and down): 0 → 1 on the first loading, 1 → 3 from
+    +Fg to −Fg, 3 → 5 back to +Fg, so τ = 1, 3, 5 are the load peaks.
 
     Returns:
         The .pvd file.
@@ -111,6 +127,8 @@ def write_time_series(
     ]
     entries = []
     fields = increment_displacements(system, result, chosen)
+    names = vtu_name_codes(mesh)
+    tau = load_path(result)
     for k, u in zip(chosen, fields, strict=True):
         inc, state = result.increments[k], result.states[k]
         cond = result.configs[inc.side]
@@ -134,7 +152,19 @@ def write_time_series(
             ),
             binary=True,
         )
-        entries.append(f'    <DataSet timestep="{k + 1}" part="0" file={quoteattr(name)}/>')
+        add_vtu_field_data(
+            folder / name,
+            {
+                "force_N": float(inc.force_n),
+                "grip_disp_mm": float(inc.disp_mm),
+                "stage": int(inc.stage),
+                "load_path": float(tau[k + 1]),
+            }
+            | names,
+        )
+        entries.append(
+            f'    <DataSet timestep="{tau[k + 1]:.9g}" part="0" file={quoteattr(name)}/>'
+        )
     pvd = folder / "cycle.pvd"
     pvd.write_text(
         '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'

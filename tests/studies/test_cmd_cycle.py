@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 
+import numpy as np
 import pytest
 
 from studies.cli import main
@@ -55,6 +56,19 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
     assert json.loads((tmp_path / "result.json").read_text())["eta"] == out["eta"]
     pvd = (tmp_path / "fields" / "cycle.pvd").read_text()
     assert pvd.count("<DataSet") >= 3
+    # ParaView's time is the load path: increasing, the last frame at +Fg after one loop (τ = 5)
+    import itertools
+    import re
+
+    import meshio
+
+    times = [float(t) for t in re.findall(r'timestep="([^"]+)"', pvd)]
+    assert all(b > a for a, b in itertools.pairwise(times))
+    assert times[-1] == pytest.approx(5.0)
+    last = re.findall(r'file="([^"]+)"', pvd)[-1]
+    frame = meshio.read(tmp_path / "fields" / last)
+    assert float(np.ravel(frame.field_data["force_N"])[0]) == pytest.approx(out["amplitude_N"])
+    assert "part:pin" in frame.field_data
     assert (tmp_path / "loop.png").read_bytes()[:4] == b"\x89PNG"
 
 
