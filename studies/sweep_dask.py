@@ -102,7 +102,7 @@ def _drain(client: Any, futures: list[Any], handle: Callable[[Any], None]) -> No
     from dask.distributed import as_completed
 
     try:
-        for future in as_completed(futures):  # type: ignore[no-untyped-call]  # dask: unannotated
+        for future in as_completed(futures):
             handle(future.result())
     except BaseException:
         client.cancel(futures)
@@ -116,7 +116,7 @@ def run_on_local_cluster(points: list[Any], settings: Any, out: Path, store: Sto
     _quiet_dask()
     n = min(settings.workers, len({p.clearance_mm for p in points}))
     with (
-        LocalCluster(  # type: ignore[no-untyped-call]  # dask: unannotated
+        LocalCluster(
             n_workers=n,
             threads_per_worker=1,
             processes=True,
@@ -125,7 +125,7 @@ def run_on_local_cluster(points: list[Any], settings: Any, out: Path, store: Sto
             # one worker per core: a worker's large LUs must not take a second thread
             env={"HINGELAB_LU_THREADS": str(max(1, (os.cpu_count() or 1) // n))},
         ) as cluster,
-        Client(cluster) as client,  # type: ignore[no-untyped-call]
+        Client(cluster) as client,
     ):
         futures = _submit_pinned(client, points, run_point_task, lambda p: (settings, p, out))
         _drain(client, futures, store)
@@ -146,7 +146,7 @@ def run_on_scheduler(points: list[Any], settings: Any, out: Path, store: Store) 
     spec = settings.spec()
     results = ResultStore(out / "results")
     try:
-        client = Client(settings.scheduler, timeout="10s")  # type: ignore[no-untyped-call]
+        client = Client(settings.scheduler, timeout="10s")
     except (OSError, TimeoutError) as err:
         raise DataError(
             f"--scheduler {settings.scheduler}: cannot connect to a Dask scheduler ({err})"
