@@ -33,10 +33,18 @@ def add_geometry_arguments(p: argparse.ArgumentParser) -> None:
 def add_mesh_arguments(p: argparse.ArgumentParser) -> None:
     """Add the mesh-size options (shared with ``cycle`` and ``sweep``)."""
     p.add_argument(
-        "--refinement", type=int, default=0, metavar="K", help="mesh level; each halves sizes (0-4; default 0)"
+        "--refinement",
+        type=int,
+        default=0,
+        metavar="K",
+        help="mesh level; each halves sizes (0-4; default 0)",
     )
     p.add_argument(
-        "--size", type=float, default=None, metavar="MM", help="global element size at level 0 [mm] (default 3 general, 2.5 bearing; 4 is a coarse, fast mesh)"
+        "--size",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="global element size at level 0 [mm] (default 3 general, 2.5 bearing; 4 is a coarse, fast mesh)",
     )
     p.add_argument(
         "--contact-size",
