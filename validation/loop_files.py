@@ -194,8 +194,16 @@ def _optional(table: _Table, i: int, col: tuple[str, float] | None) -> float | N
 # --------------------------------------------------------------------------- loops
 
 
+MODEL_LOOP_COLUMNS = ("stage", "increment", "side")
+"""Extra columns of a ``hingelab cycle`` loop.csv, accepted (and ignored) so that a model run
+reads back as a measurement. That loop is written without the free play (δ from the
+touching configurations): compare it with ``hingelab compare --without-free-play``."""
+
+
 def read_loop_csv(path: Path | str) -> Loop:
     """Read a plain loop CSV (``force_<unit>, displacement_<unit>[, time_<unit>]``).
+
+    A ``hingelab cycle`` loop.csv reads too (``MODEL_LOOP_COLUMNS`` are ignored).
 
     Args:
         path: The file.
@@ -212,11 +220,12 @@ def read_loop_csv(path: Path | str) -> Loop:
     d_col = _require_column(table, "displacement", LENGTH_UNITS)
     t_col = _find_column(table, "time", TIME_UNITS)
     known = {f_col[0], d_col[0]} | ({t_col[0]} if t_col else set())
-    extra = [h for h in table.header if h not in known]
+    extra = [h for h in table.header if h not in known and h not in MODEL_LOOP_COLUMNS]
     if extra:
         raise DataError(
             f"{table.path}: unexpected column(s) {extra}; a loop has force_<unit>, "
-            "displacement_<unit> and optionally time_<unit>"
+            "displacement_<unit> and optionally time_<unit> (and the model loop's "
+            f"{', '.join(MODEL_LOOP_COLUMNS)})"
         )
     if len(table.rows) < 4:
         raise DataError(f"{table.path}: a loop needs at least 4 rows, got {len(table.rows)}")

@@ -319,6 +319,11 @@ def remove_offsets(
     return F - f0, d - d0, f0, d0
 
 
+REVERSED_ETA = -0.002
+"""A loop whose η is below this runs clockwise: more than noise (a frictionless model loop has
+|η| ~ 1e-5; a reversed measured one has η = −η_true, typically −0.01 … −0.1)."""
+
+
 def process_loop(force_n: FloatArray, displacement_mm: FloatArray, source: str) -> ProcessedLoop:
     """Remove offsets, split the stages and measure the last loop of a record.
 
@@ -328,12 +333,27 @@ def process_loop(force_n: FloatArray, displacement_mm: FloatArray, source: str) 
         source: Name of the record for error messages.
 
     Raises:
-        DataError: On non-finite samples or a record that is not 0 → +Fg → −Fg → +Fg.
+        DataError: On non-finite samples, a record that is not 0 → +Fg → −Fg → +Fg, a
+            displacement whose sign is reversed against the force (δ_max < 0), or a loop
+            that runs the wrong way round (η < ``REVERSED_ETA``: a passive hinge dissipates).
     """
     _check_arrays(force_n, displacement_mm, source)
     F, d, f0, d0 = remove_offsets(force_n, displacement_mm)
     stages = split_stages(F, source)
-    return ProcessedLoop(F, d, stages, loop_metrics(F, d, stages), f0, d0, source)
+    metrics = loop_metrics(F, d, stages)
+    if metrics.delta_max_mm < 0.0:
+        raise DataError(
+            f"{source}: the displacement falls as the force rises (δ(+Fg) − δ(−Fg) = "
+            f"{2 * metrics.delta_max_mm:.4g} mm): its sign is reversed against the force "
+            "(a tension force must give a positive displacement); flip the displacement column"
+        )
+    if metrics.eta < REVERSED_ETA:
+        raise DataError(
+            f"{source}: the loop runs the wrong way round (W = {metrics.W_cycle_Nmm:.4g} N·mm, "
+            f"η = {metrics.eta:.4f} < 0): a passive hinge dissipates; the force and "
+            "displacement channels are out of step (check their sign and time alignment)"
+        )
+    return ProcessedLoop(F, d, stages, metrics, f0, d0, source)
 
 
 def _branch_on_grid(F: FloatArray, d: FloatArray, grid: FloatArray) -> FloatArray:

@@ -158,3 +158,34 @@ def test_inputs_not_modified():
     process_loop(F, x, "keep")
     np.testing.assert_array_equal(F, F0)
     np.testing.assert_array_equal(x, x0)
+
+
+def test_reversed_displacement_sign_is_refused_by_name():
+    F, d = ellipse_record(200)
+    process_loop(F, d, "ok")  # the right way round
+    with pytest.raises(DataError, match=r"reversed\.csv: the displacement falls .* flip the displacement"):
+        process_loop(F, -d, "reversed.csv")
+
+
+def test_a_cycle_loop_csv_reads_back_as_a_measurement(tmp_path):
+    """`hingelab cycle` writes loop.csv with stage/increment/side columns: it reads as a loop."""
+    from validation.loop_files import read_loop_file
+
+    F, d = ellipse_record(40)
+    lines = ["force_N,displacement_mm,stage,increment,side"]
+    lines += [f"{f:.9g},{x:.9g},0,{k},1" for k, (f, x) in enumerate(zip(F, d, strict=True))]
+    (tmp_path / "loop.csv").write_text("\n".join(lines) + "\n")
+    loop = read_loop_file(tmp_path / "loop.csv")
+    np.testing.assert_allclose(loop.force_n, F, rtol=1e-8)
+    assert process_loop(loop.force_n, loop.displacement_mm, "model").metrics.eta == pytest.approx(
+        process_loop(F, d, "x").metrics.eta, rel=1e-6
+    )
+    (tmp_path / "bad.csv").write_text("force_N,displacement_mm,colour\n" + "1,2,red\n" * 5)
+    with pytest.raises(DataError, match=r"unexpected column\(s\) \['colour'\]"):
+        read_loop_file(tmp_path / "bad.csv")
+
+
+def test_a_loop_running_the_wrong_way_is_refused():
+    F, d = ellipse_record(200, phi=-PHI)  # displacement leads the force: W < 0
+    with pytest.raises(DataError, match=r"runs the wrong way round"):
+        process_loop(F, d, "lead.csv")
