@@ -175,7 +175,7 @@ def _model_and_data(tmp_path: Path) -> tuple[Path, Path]:
     data = tmp_path / "data"
     data.mkdir()
     t = np.linspace(0.0, 2.5 * math.pi, 51)  # 0 → +Fg → −Fg → +Fg
-    force, disp = 300.0 * np.sin(t), 0.05 * np.sin(t + 0.3)  # far softer and lossier than the model
+    force, disp = 300.0 * np.sin(t), 0.05 * np.sin(t - 0.3)  # far softer and lossier than the model (δ lags F)
     np.savetxt(
         data / "c1.csv",
         np.column_stack([force, disp]),
