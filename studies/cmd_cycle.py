@@ -16,7 +16,7 @@ from studies.pipeline import dumps
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add the ``cycle`` subcommand."""
-    from fe.hinge.cycle import DEFAULT_MU
+    from fe.hinge.protocol import DEFAULT_MU
 
     p = sub.add_parser("cycle", help="run the 0 → +Fg → −Fg → +Fg cycle; write loop, η, fields")
     add_geometry_arguments(p)

@@ -26,8 +26,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib.figure import Figure
-from scipy import stats
 
 from cad.errors import DataError, ParameterError, check_range
 from validation import repeatability as rp
@@ -239,6 +237,9 @@ def plot_histogram(readings: rp.Readings, r: rp.Repeatability, path: Path) -> Pa
 
     Rounded readings get one bar per value, so that the bins do not alias the step.
     """
+    from matplotlib.figure import Figure  # imported here: `hingelab --help` stays fast
+    from scipy import stats
+
     x = readings.position_mm * UM_PER_MM
     mu, sigma = r.mean_mm * UM_PER_MM, r.sigma_mm * UM_PER_MM
     step = r.resolution.step_mm * UM_PER_MM
@@ -287,6 +288,8 @@ def plot_histogram(readings: rp.Readings, r: rp.Repeatability, path: Path) -> Pa
 
 def plot_eta_theta(results: tuple[rp.Repeatability, ...], c: rp.Correlation, path: Path) -> Path:
     """Draw θ (with its interval) against η per hinge, and the line through them, into a PNG."""
+    from matplotlib.figure import Figure  # imported here: `hingelab --help` stays fast
+
     fig = Figure(figsize=(6.4, 4.8), layout="constrained")
     ax = fig.subplots()
     by_name = {r.hinge: r for r in results}
