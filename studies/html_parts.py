@@ -97,8 +97,9 @@ def table(
     """Return a table; cells are formatted with :func:`fmt` unless they are :class:`Html`."""
     head = tag("tr", join(cell(h, header=True) for h in headers))
     body = join(tag("tr", join(cell(v) for v in row)) for row in rows)
-    cap = tag("caption", caption) if caption else ""
-    return tag("table", join([cap, tag("thead", head), tag("tbody", body)]))
+    # a <caption> is as narrow as its table; a paragraph above it wraps at the page width
+    cap = tag("p", caption, cls="cap") if caption else ""
+    return join([cap, tag("table", join([tag("thead", head), tag("tbody", body)]))])
 
 
 def kv_table(pairs: Iterable[tuple[str, object]]) -> Html:
@@ -123,13 +124,31 @@ def png_data_uri(path: Path) -> str | None:
     return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
 
 
+def png_size(path: Path) -> tuple[int, int] | None:
+    """Return (width, height) in pixels from a PNG's header, or None if it is not a PNG."""
+    try:
+        with path.open("rb") as fh:
+            head = fh.read(24)
+    except OSError:
+        return None
+    if not head.startswith(PNG_SIGNATURE) or len(head) < 24:
+        return None
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
+
 def figure(path: Path, caption: str, *, wide: bool = False) -> Html:
-    """Return a figure with the PNG embedded, or a note naming the file if it cannot be read."""
+    """Return a figure with the PNG embedded, or a note naming the file if it cannot be read.
+
+    In a grid of figures, a picture more than twice as wide as high takes a whole row.
+    """
     uri = png_data_uri(path)
-    if uri is None:
+    size = png_size(path)
+    if uri is None or size is None:
         return tag("p", f"figure not available: {path} (missing or not a PNG)", cls="missing")
-    img = Html(f'<img src="{esc(uri)}" alt="{esc(caption)}">')
-    return tag("figure", join([img, tag("figcaption", caption)]), cls="wide" if wide else None)
+    w, h = size
+    img = Html(f'<img src="{esc(uri)}" alt="{esc(caption)}" width="{w}" height="{h}">')
+    cls = " ".join(c for c, on in (("wide", wide), ("span", w > 2.0 * h)) if on) or None
+    return tag("figure", join([img, tag("figcaption", caption)]), cls=cls)
 
 
 def figures(items: Iterable[tuple[Path, str]]) -> Html:
@@ -180,11 +199,11 @@ h1{font-size:1.6em;margin:0 0 .2em}
 h2{font-size:1.25em;border-bottom:1px solid var(--line);padding-bottom:.2em;margin:1.8em 0 .6em}
 h3{font-size:1.05em;margin:1.2em 0 .4em}
 .sub{color:var(--muted);margin:0}
-nav.toc{font-size:.92em;margin:.6em 0}
-nav.toc a{margin-right:1.2em;white-space:nowrap}
+nav.toc{font-size:.92em;margin:.6em 0;display:flex;flex-wrap:wrap;gap:.2em 1.2em}
+nav.toc a{white-space:nowrap}
 a{color:var(--accent)}
 table{border-collapse:collapse;margin:.5em 0 1em;font-size:.9em}
-caption{text-align:left;color:var(--muted);padding-bottom:.3em}
+p.cap{color:var(--muted);margin:.8em 0 .2em;break-after:avoid}
 th,td{border:1px solid var(--line);padding:.25em .55em;text-align:left;vertical-align:top}
 th{background:var(--head);font-weight:600}
 td.n{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
@@ -196,11 +215,13 @@ table.kv td.n{text-align:left}
 padding:.4em .9em;min-width:150px}
 .card b{display:block;font-size:1.25em;font-variant-numeric:tabular-nums}
 .card span{color:var(--muted);font-size:.85em}
-.grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(360px,1fr));gap:14px;
+.grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(400px,1fr));gap:14px;
 align-items:start}
 figure{margin:.4em 0 1em;break-inside:avoid}
 figure img{display:block;max-width:100%;height:auto;border:1px solid var(--line)}
 figure.wide img{max-height:560px;width:auto}
+.grid figure.span{grid-column:1/-1}
+.grid figure.span img{max-height:420px;width:auto}
 figcaption{color:var(--muted);font-size:.88em;margin-top:.25em}
 .pass{color:var(--good);font-weight:600}
 .fail{color:var(--bad);font-weight:600}
@@ -208,7 +229,8 @@ figcaption{color:var(--muted);font-size:.88em;margin-top:.25em}
 .note{color:var(--muted);font-size:.92em}
 .scroll{max-height:440px;overflow:auto;border:1px solid var(--line);margin-bottom:1em}
 .scroll table{margin:0}
-pre{background:#f5f7f9;border:1px solid var(--line);padding:.7em;overflow:auto;font-size:.84em}
+pre{background:#f5f7f9;border:1px solid var(--line);padding:.7em;overflow:auto;font-size:.84em;
+white-space:pre-wrap;overflow-wrap:anywhere}
 footer{margin-top:3em;color:var(--muted);font-size:.85em}
 @media print{
   @page{margin:14mm}
@@ -219,7 +241,7 @@ footer{margin-top:3em;color:var(--muted);font-size:.85em}
   h2,h3{break-after:avoid}
   tr,figure,.card{break-inside:avoid}
   .grid{grid-template-columns:repeat(2,1fr)}
-  figure.wide img{max-height:none;max-width:100%}
+  figure.wide img,.grid figure.span img{max-height:none;max-width:100%}
   a{color:inherit;text-decoration:none}
 }
 """

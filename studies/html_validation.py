@@ -208,7 +208,7 @@ def calibrate_report(folder: Path, report_dir: Path) -> ReportBody:
         Section(
             "model",
             "Calibrated model",
-            join([tag("p", link(model, report_dir, "MODEL.toml")), tag("pre", model_text)]),
+            join([tag("p", link(model, report_dir, "MODEL.toml")), scroll(tag("pre", model_text))]),
         ),
     ]
     if (folder / "compare" / "comparison.json").is_file():
@@ -297,6 +297,11 @@ def paper_validation_report(folder: Path, report_dir: Path) -> ReportBody:
     return ReportBody("Our model against the paper's published values", run, sections)
 
 
+def _share(value: object) -> str:
+    """Format a fraction (0.16) as an unsigned percentage (16.0 %)."""
+    return f"{100.0 * value:.1f} %" if isinstance(value, int | float) else "—"
+
+
 def _hinge_section(folder: Path, name: str, h: Mapping[str, Any]) -> Section:
     x = h.get("x_names") or []
     metrics = kv_table((k, v) for k, v in (h.get("metrics") or {}).items())
@@ -311,7 +316,7 @@ def _hinge_section(folder: Path, name: str, h: Mapping[str, Any]) -> Section:
                 f"{n} ∈ [{fmt(lo)}, {fmt(hi)}]"
                 for n, lo, hi in zip(x, v.get("lower") or [], v.get("upper") or [], strict=False)
             ),
-            pct(v.get("area_fraction")),
+            _share(v.get("area_fraction")),
         ]
         for key, v in h.items()
         if key.startswith("eta_below") or key.startswith("eta_above")
@@ -332,7 +337,8 @@ def _hinge_section(folder: Path, name: str, h: Mapping[str, Any]) -> Section:
             if regions
             else "",
             plots,
-            tag("details", join([tag("summary", "coefficients"), coef])),
+            tag("h3", "Coefficients (physical units)"),
+            coef,
         ]
     )
     return Section(f"hinge-{name}", f"{name} hinge: surface and threshold region", body)
