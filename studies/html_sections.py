@@ -31,6 +31,7 @@ from studies.html_parts import (
     table,
     tag,
 )
+from studies.html_surfaces import rsm_fit_sections
 
 
 @dataclass(frozen=True)
@@ -366,42 +367,6 @@ def _run_of_sweep(points: list[TracePoint], table_csv: Path) -> list[tuple[str, 
     ]
 
 
-def rsm_fit_sections(folder: Path, fits: list[dict[str, Any]]) -> list[Section]:
-    """The response surfaces fitted to a sweep: the fits in the trace and ``*_rsm/`` plots."""
-    out: list[Section] = []
-    if fits:
-        rows = [
-            [f["id"], f["y"], ", ".join(f["x"]), f["degree"], f["n"]]
-            + [f["metrics"].get(k) for k in ("R2", "R2_adj", "Q2", "RMSE", "max_abs_RE_percent")]
-            for f in fits
-        ]
-        heads = ["fit", "y", "x", "degree", "points", "R²", "R²adj", "Q²", "RMSE", "max |RE| %"]
-        last = fits[-1]
-        coef = table(
-            ["term", "coefficient"],
-            zip(last["terms"], last["coefficients"], strict=True),
-            caption=f"Coefficients of fit {last['id']} (physical units; x1 = {', x2 = '.join(last['x'])})",
-        )
-        out.append(
-            Section("fits", "Response-surface fits (trace)", join([table(heads, rows), coef]))
-        )
-    for d in sorted(folder.glob("*_rsm")):
-        body = figures(
-            (d / f"{name}.png", f"{d.name}/{name}.png — {what}")
-            for name, what in (
-                (
-                    "contour",
-                    "contours; the shaded area is the threshold region (rsm fit --threshold)",
-                ),
-                ("surface_3d", "response surface"),
-                ("slices", "slices through the surface"),
-                ("predicted_vs_actual", "predicted vs actual"),
-            )
-        )
-        out.append(Section(f"rsm-{d.name}", f"Surfaces and threshold regions ({d.name}/)", body))
-    return out
-
-
 def sweep_report(folder: Path, report_dir: Path) -> ReportBody:
     """Read a ``hingelab sweep`` folder (trace.sqlite, table.csv, points/, geometry/)."""
     points, fits = read_trace(folder / "trace.sqlite")
@@ -435,9 +400,17 @@ def sweep_report(folder: Path, report_dir: Path) -> ReportBody:
             ),
         ),
         Section("loops", "Loops", loops or tag("p", "no loop pictures", cls="note")),
-        *rsm_fit_sections(folder, fits),
+        *rsm_fit_sections(folder, fits, report_dir),
         Section(
             "geometry", "Geometries and meshes", meshes or tag("p", "no mesh pictures", cls="note")
         ),
     ]
-    return ReportBody("Design sweep", _run_of_sweep(points, folder / "table.csv"), sections)
+    run = _run_of_sweep(points, folder / "table.csv")
+    study = folder / "study.toml"  # hingelab study copies its study file here
+    if not study.is_file():
+        return ReportBody("Design sweep", run, sections)
+    run.insert(0, ("study file", link(study, report_dir, "study.toml")))
+    run[1] = ("command", "hingelab study STUDY.toml (a design study file, run as a sweep)")
+    text = study.read_text(encoding="utf-8")
+    sections.insert(0, Section("study", "Study file", scroll(tag("pre", text))))
+    return ReportBody("Design study", run, sections)

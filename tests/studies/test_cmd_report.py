@@ -163,8 +163,6 @@ def _compare_json(cases=("c200", "c300_bad")) -> dict:
 
 def _other_folders(root: Path) -> dict[str, Path]:
     """One minimal folder of each other kind (JSON of the right shape, real PNGs)."""
-    from rsm import trace
-
     out = {}
     d = out["compare"] = root / "compare"
     _png(d / "error_map.png")
@@ -195,7 +193,24 @@ def _other_folders(root: Path) -> dict[str, Path]:
         "diagnose_zero_clearance": diag,
     }
     (d / "report.json").write_text(json.dumps(report))
-    d = out["sweep"] = root / "sweep"
+    out["sweep"] = _sweep_folder(root / "sweep")
+    d = out["study"] = _sweep_folder(root / "study")
+    (d / "study.toml").write_text('[study]\nname = "demo"\n')
+    region = {"threshold": 0.005, "below": True, "x": ["clearance_mm", "amplitude_N"]}
+    region |= {"fixed": {}, "area_fraction": 0.2859, "n_parts": 1}
+    region |= {"lower": [0.07, 200.0], "upper": [0.1, 400.0]}
+    fit = {"x": ["clearance_mm", "amplitude_N"], "y": "eta", "degree": 1, "n_points": 4}
+    fit |= {"metrics": {"R2": 0.999}, "minimum": {"x": [0.1, 200.0], "y": 0.00108}}
+    fit |= {"threshold_region": region, "warnings": ["looks <over-fitted>"]}
+    _png(d / "rsm" / "contour.png")
+    (d / "rsm" / "fit.json").write_text(json.dumps(fit))
+    return out
+
+
+def _sweep_folder(d: Path) -> Path:
+    """A sweep's layout: one point in the trace, its loop picture and STEP file."""
+    from rsm import trace
+
     loop = _png(d / "points" / "c0.000_F200" / "loop.png")
     step = d / "geometry" / "c0.000" / "hinge.step"
     step.parent.mkdir(parents=True)
@@ -208,7 +223,7 @@ def _other_folders(root: Path) -> dict[str, Path]:
         solver={"mu": 0.2, "mesh": {"size_mm": 4.0}},
         results={"eta": 0.0143},
     )
-    return out
+    return d
 
 
 # ---------------------------------------------------------------- structure checks
@@ -384,12 +399,16 @@ def test_report_of_a_cycle_is_self_contained_and_escaped(tmp_path, capsys):
     ("kind", "expected"),
     [
         ("sweep", ["Design sweep", "Trace", "0.0143"]),
+        (
+            "study",
+            ["Design study", "Study file", "eta < 0.005 on 28.6 % of the box", "<over-fitted>"],
+        ),
         ("compare", ["Comparison table", "FAIL", "-23.0 %", "Errors per metric"]),
         ("calibrate", ["Error ledger", "Calibrated model", "141.5"]),
         ("rsm paper", ["138 / 144", "eta_below_0.05", "1.6 %"]),
         ("paper validation", ["effect_missing", "-78 %", "0.0656"]),
     ],
-    ids=["sweep", "compare", "calibrate", "rsm-paper", "paper-validation"],
+    ids=["sweep", "study", "compare", "calibrate", "rsm-paper", "paper-validation"],
 )
 def test_report_of_each_kind(tmp_path, kind, expected):
     folder = _other_folders(tmp_path)[kind]
@@ -467,3 +486,9 @@ def test_report_of_a_real_coarse_cycle(chromium, tmp_path):
     assert {"hinge.step", "mesh.vtu", "loop.csv", "fields/cycle.pvd"} <= set(page.hrefs)
     # the loop picture follows the "what was run" table and the headline numbers
     render_and_check(chromium, out, tmp_path, region=(950, 1350, 120, 780))
+
+
+def test_chromium_install_can_be_refused(monkeypatch):
+    """With HINGELAB_NO_APT set the helper installs nothing and says why (the tests then skip)."""
+    monkeypatch.setenv("HINGELAB_NO_APT", "1")
+    assert "HINGELAB_NO_APT" in _install_chromium()
