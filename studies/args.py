@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from cad.errors import ParameterError
 from mesh.settings import MeshSettings
 from studies.pipeline import HINGES
 
@@ -63,3 +64,28 @@ def settings_from_args(args: argparse.Namespace) -> MeshSettings:
     if args.contact_size is not None:
         kw["contact_size_mm"] = args.contact_size
     return MeshSettings.for_hinge(args.hinge, **kw)
+
+
+OPTION_OF_FIELD = {
+    "amplitude_n": "--amplitude",
+    "clearance_mm": "--clearance",
+    "mu": "--mu",
+    "increments_per_stage": "--increments",
+    "clearance_increments": "--increments",
+    "n_cycles": "--cycles",
+    "refinement": "--refinement",
+    "size_mm": "--size",
+    "contact_size_mm": "--contact-size",
+    "preload_n": "--preload",
+}
+"""Dataclass field → the command-line option a user types for it."""
+
+
+def with_option(err: ParameterError) -> ParameterError:
+    """Return the error prefixed with the option the user typed (``--amplitude: amplitude_n …``)."""
+    text = str(err)
+    for field_name, option in OPTION_OF_FIELD.items():
+        if text.startswith(field_name + " ") and not text.startswith("--"):
+            return ParameterError(f"{option}: {text}")
+    return err
+

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from cad.errors import ParameterError
-from studies.args import add_geometry_arguments, settings_from_args
+from studies.args import add_geometry_arguments, settings_from_args, with_option
 from studies.pipeline import dumps
 
 
@@ -76,7 +76,10 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if args.frames < 0:
         raise ParameterError(f"--frames must be ≥ 0, got {args.frames}")
-    spec = _spec_from_args(args)
+    try:
+        spec = _spec_from_args(args)
+    except ParameterError as err:
+        raise with_option(err) from err
     point = DesignPoint(amplitude_n=spec.cycle.amplitude_n, clearance_mm=_clearance(spec))
     service = ModelService(geometry_dir=lambda _c: args.out)
     prepared = service.prepare(spec, point.clearance_mm)
@@ -166,12 +169,10 @@ def _spec_from_args(args: argparse.Namespace) -> Any:
         }.items()
         if v is not None
     }
-    option = {"amplitude_n": "--amplitude", "mu": "--mu", "n_cycles": "--cycles"}
     try:
         cycle = dataclasses.replace(spec.cycle, **overrides)
     except ParameterError as err:  # name the option the user typed, not only the field
-        names = [o for f, o in option.items() if f in str(err)] or ["--increments"]
-        raise ParameterError(f"{names[0]}: {err}") from err
+        raise with_option(err) from err
     return dataclasses.replace(spec, cycle=cycle)
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from cad.errors import ParameterError
 from fe.hinge.protocol import DEFAULT_MU
-from studies.args import add_mesh_arguments, settings_from_args
+from studies.args import add_mesh_arguments, settings_from_args, with_option
 from studies.pipeline import dumps
 from studies.sweep import SweepSettings, run_sweep
 
@@ -77,9 +77,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.set_defaults(func=run, hinge="general")
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run ``hingelab sweep``."""
-    settings = SweepSettings(
+def _settings(args: argparse.Namespace) -> SweepSettings:
+    return SweepSettings(
         clearances_mm=_floats("clearance", args.clearance),
         amplitudes_n=_floats("amplitude", args.amplitude),
         mu=args.mu,
@@ -90,6 +89,14 @@ def run(args: argparse.Namespace) -> int:
         study=args.study,
         scheduler=args.scheduler or None,
     )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``hingelab sweep``."""
+    try:
+        settings = _settings(args)
+    except ParameterError as err:
+        raise with_option(err) from err
 
     def report(rec: dict[str, object]) -> None:
         if not args.json:
