@@ -51,7 +51,7 @@ import numpy as np
 
 from cad.errors import DataError, check_range
 from validation.features import FeatureSettings, feature_sigma, loop_features
-from validation.loops import ProcessedLoop, loop_distance, process_loop
+from validation.loops import ProcessedLoop, loop_distance, noise_level, process_loop
 from validation.measurements import Case, Loop, MeasurementSet
 
 METRICS = ("disp_at_peak_mm", "W_cycle_Nmm", "eta", "secant_stiffness_N_per_mm", "rms_loop")
@@ -269,8 +269,14 @@ def _record_sigma(
     feats = loop_features(meas)
     r_delta = float(sig[0] / abs(feats[0]))
     r_W = float(sig[1] / max(abs(feats[1]), 1e-300))
+    m = meas.metrics
+    peak = max(abs(m.disp_at_peak_mm), 1e-300)
+    # δ(+Fg) is one sample (δ_max averages two peaks): its full displacement noise counts
+    s_peak = math.hypot(
+        noise_level(meas.displacement_mm), m.delta_max_mm / m.f_max_n * noise_level(meas.force_n)
+    )
     base = {
-        "disp_at_peak_mm": float(sig[0]) / max(abs(meas.metrics.disp_at_peak_mm), 1e-300),
+        "disp_at_peak_mm": math.hypot(s_peak, f.rel_floor * m.delta_max_mm) / peak,
         "W_cycle_Nmm": r_W,
         "eta": math.hypot(r_W, r_delta),
         "secant_stiffness_N_per_mm": r_delta,

@@ -356,10 +356,44 @@ def process_loop(force_n: FloatArray, displacement_mm: FloatArray, source: str) 
     return ProcessedLoop(F, d, stages, metrics, f0, d0, source)
 
 
+def _side(F: FloatArray, d: FloatArray, positive: bool) -> tuple[FloatArray, FloatArray]:
+    """The part of a branch (in time order) on one side of its zero-force crossing.
+
+    With clearance the branch crosses its free play at F = 0 (δ jumps by 4Δr there), so
+    δ(F) at a small positive force must come from the samples before (descending) or after
+    (ascending) the crossing, never from the other side's end of it.
+    """
+    descending = F[0] > F[-1]
+    if descending == positive:  # the side the branch starts on: up to the first crossing sample
+        cross = np.flatnonzero(F <= 0.0) if positive else np.flatnonzero(F >= 0.0)
+        end = int(cross[0]) if cross.size else len(F) - 1
+        return F[: end + 1], d[: end + 1]
+    cross = np.flatnonzero(F >= 0.0) if not positive else np.flatnonzero(F <= 0.0)
+    start = int(cross[-1]) if cross.size else 0
+    return F[start:], d[start:]
+
+
 def _branch_on_grid(F: FloatArray, d: FloatArray, grid: FloatArray) -> FloatArray:
-    """δ(F) of one branch on ``grid``, the samples sorted by force (noise makes F non-monotone)."""
-    order = np.argsort(F, kind="stable")
-    return np.interp(grid, F[order], d[order])
+    """δ(F) of one branch on ``grid``, the samples sorted by force (noise makes F non-monotone).
+
+    Positive and negative grid forces are interpolated on their own side of the zero-force
+    crossing (``_side``).
+    """
+    out = np.empty(grid.shape)
+    for positive, sel in ((True, grid > 0.0), (False, grid <= 0.0)):
+        if not np.any(sel):
+            continue
+        Fs, ds = _side(F, d, positive)
+        order = np.argsort(Fs, kind="stable")
+        out[sel] = np.interp(grid[sel], Fs[order], ds[order])
+    return out
+
+
+ZERO_BAND_NOISE = 4.0
+"""Half-width of the band around F = 0 left out of the loop distance, in force-noise σ."""
+
+ZERO_BAND_FRACTION = 0.02
+"""Least half-width of that band, as a fraction of F_max (a noise-free model loop)."""
 
 
 def branch_residuals(
@@ -367,17 +401,24 @@ def branch_residuals(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Resample both branches of two loops on a common force grid and subtract.
 
-    The grid spans ±0.98 of the smaller F_max, so both loops cover it. Each loop is
-    centred on the midpoint (δ(+Fg) + δ(−Fg))/2 of its own peaks: the residual then
-    measures the loop's shape (stiffness and width), not the start offset, which
-    ``disp_at_peak_mm`` already measures.
+    The grid spans ±0.98 of the smaller F_max, so both loops cover it, except a band
+    around F = 0 of ``ZERO_BAND_NOISE`` times the measured force noise (at least
+    ``ZERO_BAND_FRACTION`` of F_max): with clearance a branch crosses its free play there
+    at zero force, where δ(F) is a vertical segment that a noisy force scrambles over the
+    whole 4Δr. Each loop is centred on the midpoint (δ(+Fg) + δ(−Fg))/2 of its own peaks:
+    the residual then measures the loop's shape (stiffness and width), not the start
+    offset, which ``disp_at_peak_mm`` already measures.
 
     Returns:
         (force grid (n_grid,) [N], δ_model − δ_measured on the descending branch
         (n_grid,) [mm], same on the ascending branch (n_grid,) [mm]).
     """
     f_c = 0.98 * min(measured.metrics.f_max_n, model.metrics.f_max_n)
-    grid = np.linspace(-f_c, f_c, n_grid)
+    band = min(
+        max(ZERO_BAND_NOISE * noise_level(measured.force_n), ZERO_BAND_FRACTION * f_c), 0.5 * f_c
+    )
+    half = np.linspace(band, f_c, n_grid // 2)
+    grid = np.concatenate([-half[::-1], half])
     out = []
     for loop in (measured, model):
         centre = 0.5 * (loop.metrics.disp_at_peak_mm + loop.metrics.disp_at_minus_peak_mm)

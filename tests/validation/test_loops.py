@@ -189,3 +189,36 @@ def test_a_loop_running_the_wrong_way_is_refused():
     F, d = ellipse_record(200, phi=-PHI)  # displacement leads the force: W < 0
     with pytest.raises(DataError, match=r"runs the wrong way round"):
         process_loop(F, d, "lead.csv")
+
+
+def _free_play_record(n_per_stage, a=0.2, fg=300.0, k=1e5, crossing=0, noise=0.0, seed=0):
+    """0 → +Fg → −Fg → +Fg of a hinge with free play ±a crossed at F = 0 (``crossing`` samples).
+
+    Bilinear branches (δ = ±a + F/k ± a little friction lag) so the loop has some area.
+    """
+    rng = np.random.default_rng(seed)
+
+    def stage(f0, f1):
+        f = np.linspace(f0, f1, n_per_stage + 1)[1:]
+        lag = 0.02 * a * np.sign(f0 - f1)  # descending branches sit a little to the right
+        return f, np.sign(f0 + f1) * a + f / k + lag * (1 - np.abs(f) / fg)
+
+    parts = [(np.array([0.0, 0.0]), np.array([0.0, a]))]
+    parts.append(stage(0.0, fg))
+    for f0, f1 in ((fg, 0.0), (0.0, -fg), (-fg, 0.0), (0.0, fg)):
+        parts.append(stage(f0, f1))
+        if f1 == 0.0:  # cross the free play at zero force
+            side = -1.0 if f0 > 0 else 1.0
+            x = np.linspace(-side * a, side * a, crossing + 2)[1:]
+            parts.append((np.zeros_like(x), x))
+    F = np.concatenate([p[0] for p in parts])
+    d = np.concatenate([p[1] for p in parts])
+    return F + rng.normal(0, noise, F.size), d
+
+
+def test_loop_distance_ignores_the_free_play_crossing():
+    """A coarse model path (the crossing two points at F = 0) against a dense, noisy record of
+    the same hinge: the branches are compared on their own side of the crossing."""
+    coarse = process_loop(*_free_play_record(6), "model")
+    dense = process_loop(*_free_play_record(300, crossing=400, noise=0.2), "record")
+    assert loop_distance(dense, coarse) < 0.01 * dense.metrics.delta_max_mm
