@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from validation.loops import ProcessedLoop, noise_level
+from validation.loops import ProcessedLoop, area_noise_sigma, noise_level
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -96,12 +96,7 @@ def noise_sigma(loop: ProcessedLoop) -> FloatArray:
     slope = m.delta_max_mm / m.f_max_n * s_F
     s_delta = math.hypot(s_d / math.sqrt(2.0), slope)
     s_open = math.sqrt(2.0) * math.hypot(s_d, slope)
-    sl = loop.stages.last_loop
-    Fl, dl = F[sl], d[sl]
-    dF = Fl[2:] - Fl[:-2]
-    dd = dl[2:] - dl[:-2]
-    var_W = 0.25 * s_d**2 * float(np.sum(dF**2)) + 0.25 * s_F**2 * float(np.sum(dd**2))
-    return np.array([s_delta, math.sqrt(var_W), s_open])
+    return np.array([s_delta, area_noise_sigma(F, d, loop.stages), s_open])
 
 
 def feature_sigma(

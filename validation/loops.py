@@ -320,8 +320,27 @@ def remove_offsets(
 
 
 REVERSED_ETA = -0.002
-"""A loop whose η is below this runs clockwise: more than noise (a frictionless model loop has
-|η| ~ 1e-5; a reversed measured one has η = −η_true, typically −0.01 … −0.1)."""
+"""A loop whose η is below this, beyond ``REVERSED_SIGMAS`` noise σ of its area, runs
+clockwise (a frictionless model loop has |η| ~ 1e-5; a weakly dissipative noisy record can
+have W < 0 by noise alone, which is not refused)."""
+
+REVERSED_SIGMAS = 4.0
+"""Noise σ of the loop area a clockwise loop must exceed to be refused."""
+
+
+def area_noise_sigma(force_n: FloatArray, displacement_mm: FloatArray, stages: Stages) -> float:
+    """σ of the last loop's area from white noise on both channels [N·mm].
+
+    First-order propagation through the shoelace sum:
+    ``var W = ¼ Σ σ_d² (F_{i+1} − F_{i−1})² + ¼ Σ σ_F² (δ_{i+1} − δ_{i−1})²``.
+    """
+    s_F, s_d = noise_level(force_n), noise_level(displacement_mm)
+    sl = stages.last_loop
+    Fl, dl = force_n[sl], displacement_mm[sl]
+    dF = Fl[2:] - Fl[:-2]
+    dd = dl[2:] - dl[:-2]
+    var_W = 0.25 * s_d**2 * float(np.sum(dF**2)) + 0.25 * s_F**2 * float(np.sum(dd**2))
+    return math.sqrt(var_W)
 
 
 def process_loop(force_n: FloatArray, displacement_mm: FloatArray, source: str) -> ProcessedLoop:
@@ -347,10 +366,11 @@ def process_loop(force_n: FloatArray, displacement_mm: FloatArray, source: str) 
             f"{2 * metrics.delta_max_mm:.4g} mm): its sign is reversed against the force "
             "(a tension force must give a positive displacement); flip the displacement column"
         )
-    if metrics.eta < REVERSED_ETA:
+    u = 2.0 * math.pi * metrics.U_max_Nmm
+    if metrics.W_cycle_Nmm < REVERSED_ETA * u - REVERSED_SIGMAS * area_noise_sigma(F, d, stages):
         raise DataError(
             f"{source}: the loop runs the wrong way round (W = {metrics.W_cycle_Nmm:.4g} N·mm, "
-            f"η = {metrics.eta:.4f} < 0): a passive hinge dissipates; the force and "
+            f"η = {metrics.eta:.4f}, beyond its noise): a passive hinge dissipates; the force and "
             "displacement channels are out of step (check their sign and time alignment)"
         )
     return ProcessedLoop(F, d, stages, metrics, f0, d0, source)

@@ -222,3 +222,11 @@ def test_loop_distance_ignores_the_free_play_crossing():
     coarse = process_loop(*_free_play_record(6), "model")
     dense = process_loop(*_free_play_record(300, crossing=400, noise=0.2), "record")
     assert loop_distance(dense, coarse) < 0.01 * dense.metrics.delta_max_mm
+
+
+def test_a_noisy_weakly_dissipative_loop_is_not_refused():
+    """Noise alone can make W < 0 when the loop is thin: that is data, not a reversed channel."""
+    F, d = ellipse_record(600, phi=0.002)
+    rng = np.random.default_rng(0)
+    noisy = process_loop(F + rng.normal(0, 1.5, F.size), d + rng.normal(0, 2e-4, d.size), "thin")
+    assert noisy.metrics.eta < -0.002  # this seed's noise makes it clockwise: judged, not refused
