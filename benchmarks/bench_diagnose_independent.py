@@ -106,8 +106,9 @@ def main(n_null: int) -> None:
         t1 = time.perf_counter()
         meas = measured_features(data, s.features)
         d = diagnose(spec, data, s, evaluator=ev)
+        fitted = f"{d.candidates[0].value:.3g}" if d.effects else ""
         rows.append(
-            (label, seed, d.verdict.value, ",".join(d.effects) or "-", d.chi2_base,
+            (label, seed, d.verdict.value, (",".join(d.effects) or "-") + (f" {fitted}" if fitted else ""), d.chi2_base,
              d.chi2_noise_limit, meas.n_obs, d.sensitivity.get("loop_area_or_eta"),
              time.perf_counter() - t1)
         )  # fmt: skip

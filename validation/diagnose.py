@@ -373,7 +373,8 @@ def _verdict(
         sens = sensitivity(meas, s.alpha, s.power)
         power = _power_words(sens, s.alpha, s.power)
         area = sens["loop_area_or_eta"]
-        if n == 0 or area is None or area > s.tell_rel_error:
+        low_power = n == 0 or area is None or area > s.tell_rel_error
+        if low_power and not c0 > limit:  # a real misfit is reported whatever the power
             what = "no feature" if n == 0 else f"N = {n} features"
             return _Decision(
                 Verdict.CANNOT_TELL,

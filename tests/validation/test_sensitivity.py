@@ -123,3 +123,16 @@ def test_pattern_names_the_largest_residuals():
     words = residual_pattern(model, meas)
     assert any("delta_max_mm -13.0σ at Δr = 0 mm, Fg = 100 N" in w for w in words), words
     assert not any("no systematic pattern" in w for w in words)
+
+
+def test_a_real_misfit_is_unexplained_even_when_power_is_low():
+    """χ² above the noise limit with no candidate that explains it: a residual the data do
+    show, so not 'cannot tell' (a lag outside the registry gave χ² 22 > 18.5 this way)."""
+    s = DiagnoseSettings()
+    pts = _design(clearances=(0.0,), amps=(100.0, 300.0))
+    vals, sig = _features(pts)
+    sig[:, 1] = 0.8 * vals[:, 1]  # weak on the loop area
+    weak = MeasuredFeatures(pts, vals, sig, max_rel_sigma=1.0)
+    n = weak.n_obs
+    limit = float(stats.chi2.ppf(1 - s.alpha, n))
+    assert _verdict([], 1.2 * limit, n, limit, weak, s).verdict is Verdict.UNEXPLAINED
