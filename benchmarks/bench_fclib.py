@@ -31,33 +31,12 @@ MAX_ITER = 200
 SICONOS = ("NSN_AC", "NSN_FB", "NSGS")
 
 
-def project_cone(x, mu):
-    xn, xt = x[:, 0], x[:, 1:]
-    nt = np.hypot(xt[:, 0], xt[:, 1])
-    out = x.copy()
-    polar = mu * nt <= -xn
-    side = ~(nt <= mu * xn) & ~polar
-    rn = (mu * nt + xn) / (1.0 + mu**2)
-    out[polar] = 0.0
-    out[side, 0] = rn[side]
-    out[side, 1:] = (mu * rn / np.where(nt > 0, nt, 1.0))[side, None] * xt[side]
-    return out
-
-
-def fclib_error(W, q, mu, r):
-    """Siconos fc3d_compute_error: |r - P_K(r - (u + mu|u_T| e_n))| / max(|q|, |r|, |u|)."""
-    u = (W @ r.ravel() + q).reshape(-1, 3)
-    u_mod = u.copy()
-    u_mod[:, 0] += mu * np.hypot(u[:, 1], u[:, 2])
-    res = r - project_cone(r - u_mod, mu)
-    return float(np.linalg.norm(res) / max(np.linalg.norm(q), np.linalg.norm(r), np.linalg.norm(u)))
-
-
 def _solve(path: str, queue: Any) -> None:
     from threadpoolctl import threadpool_limits
 
     from cad.errors import ConvergenceError
     from fe.contact import ContactSettings, ContactState, solve_increment
+    from fe.contact.measure import siconos_error
 
     with np.load(path) as d:
         W, q, mu = d["W"], d["q"], d["mu"]
@@ -79,7 +58,7 @@ def _solve(path: str, queue: Any) -> None:
     wall = time.perf_counter() - t0
     queue.put(
         {
-            "err": fclib_error(W, q, mu, p),
+            "err": siconos_error(W, q, mu, p),
             "iters": iters,
             "wall": wall,
             "raised": raised,

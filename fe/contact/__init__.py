@@ -11,6 +11,7 @@ This sub-package is the contact algebra only: it imports nothing else from ``fe`
 * :mod:`fe.contact.globalise` — the Newton loop: line search, rescues;
 * :mod:`fe.contact.proximal` — the fallback where no Newton step exists (singular ``W``);
 * :mod:`fe.contact.solve` — :func:`solve_increment`, which runs them.
+* :mod:`fe.contact.measure` — Siconos' common error measure, to score a solution.
 
 The stiffness is linear and constant; the caller condenses it once onto ``m`` contact
 points (slave nodes) and passes, per load increment,

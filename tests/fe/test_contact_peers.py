@@ -4,8 +4,8 @@ The problems in ``tests/fe/data/fclib`` (see the README there) are small copies 
 ``../shared/peers/fclib``: three rigid-body sets whose Delassus operator ``W`` is rank
 deficient (every Newton step of the active-set method is singular; the proximal fallback
 has to solve them) and one deformable set that the fast path solves. The check is
-Siconos' error measure (``fc3d_compute_error``), computed here from scratch and not from
-the solver's own residual. The mapping is exact: FCLib's ``u = W r + q`` with ``r_n >= 0``
+Siconos' error measure (``fc3d_compute_error``, ``fe.contact.measure``: its own equation,
+not the solver's residual ρ). The mapping is exact: FCLib's ``u = W r + q`` with ``r_n >= 0``
 compressive and ``u_n >= 0`` separating is ``w = W p + w_free`` with ``w_t_prev = 0``.
 """
 
@@ -19,6 +19,7 @@ import pytest
 from cad.errors import ConvergenceError, ParameterError
 from fe.contact import ContactSettings, ContactState, solve_increment
 from fe.contact.law import coulomb_step
+from fe.contact.measure import siconos_error
 
 DATA = Path(__file__).parent / "data" / "fclib"
 SOLVED = 1e-8  # "solved" in the peers' table
@@ -30,38 +31,14 @@ def load(name):
         return d["W"], d["q"], d["mu"]
 
 
-def project_cone(x, mu):
-    """Euclidean projection of each row (n, t1, t2) onto {|x_t| <= mu x_n}."""
-    xn, xt = x[:, 0], x[:, 1:]
-    nt = np.hypot(xt[:, 0], xt[:, 1])
-    out = x.copy()
-    polar = mu * nt <= -xn
-    side = ~(nt <= mu * xn) & ~polar
-    rn = (mu * nt + xn) / (1.0 + mu**2)
-    out[polar] = 0.0
-    out[side, 0] = rn[side]
-    out[side, 1:] = (mu * rn / np.where(nt > 0, nt, 1.0))[side, None] * xt[side]
-    return out
-
-
-def fclib_error(W, q, mu, r):
-    """Siconos fc3d_compute_error: |r - P_K(r - (u + mu|u_T| e_n))| / max(|q|, |r|, |u|)."""
-    u = (W @ r.ravel() + q).reshape(-1, 3)
-    u_mod = u.copy()
-    u_mod[:, 0] += mu * np.hypot(u[:, 1], u[:, 2])
-    res = r - project_cone(r - u_mod, mu)
-    scale = max(np.linalg.norm(q), np.linalg.norm(r), np.linalg.norm(u))
-    return np.linalg.norm(res) / scale
-
-
 def test_error_measure_detects_a_wrong_answer():
     # the measure itself must be able to fail: the zero force and a perturbed solution
     W, q, mu = load("Confeti-ex03")
     m = len(mu)
     res = solve_increment(W, q.reshape(m, 3), ContactState.initial(m), ContactSettings(mu=mu))
-    assert fclib_error(W, q, mu, res.state.p) <= SOLVED
-    assert fclib_error(W, q, mu, np.zeros((m, 3))) > 1e-2
-    assert fclib_error(W, q, mu, 1.01 * res.state.p) > 10 * SOLVED
+    assert siconos_error(W, q, mu, res.state.p) <= SOLVED
+    assert siconos_error(W, q, mu, np.zeros((m, 3))) > 1e-2
+    assert siconos_error(W, q, mu, 1.01 * res.state.p) > 10 * SOLVED
 
 
 @pytest.mark.parametrize(
@@ -79,7 +56,7 @@ def test_peer_problem_is_solved_from_zero(name, rank_deficient):
     m = len(mu)
     settings = ContactSettings(mu=mu, max_iter=MAX_ITER)
     res = solve_increment(W, q.reshape(m, 3), ContactState.initial(m), settings)
-    assert fclib_error(W, q, mu, res.state.p) <= SOLVED
+    assert siconos_error(W, q, mu, res.state.p) <= SOLVED
     assert res.iterations <= MAX_ITER
     # the fallback runs exactly where the fast path has no Newton step
     assert (res.regularised_iterations > 0) == rank_deficient
@@ -148,7 +125,7 @@ def test_nonsymmetric_W_is_solved_exactly():
     q[0::3] -= 1.0
     mu = np.full(m, 0.4)
     res = solve_increment(W, q.reshape(m, 3), ContactState.initial(m), ContactSettings(mu=mu))
-    assert fclib_error(W, q, mu, res.state.p) <= SOLVED
+    assert siconos_error(W, q, mu, res.state.p) <= SOLVED
     assert res.n_slip + res.n_stick > 0
 
 
