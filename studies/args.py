@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 
 from cad.errors import ParameterError
 from mesh.settings import MeshSettings
@@ -56,6 +57,24 @@ def add_mesh_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_cluster_arguments(p: argparse.ArgumentParser) -> None:
+    """Add where the points run (shared by ``sweep`` and ``study``)."""
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        metavar="N",
+        help="local Dask worker processes (default 1: in this process)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=os.environ.get("DASK_SCHEDULER_ADDRESS"),
+        metavar="ADDRESS",
+        help="run on an existing Dask cluster, e.g. tcp://host:8786 "
+        "(default: $DASK_SCHEDULER_ADDRESS, else no cluster)",
+    )
+
+
 def settings_from_args(args: argparse.Namespace) -> MeshSettings:
     """Return mesh settings from the parsed options."""
     kw: dict[str, float | int] = {"refinement": args.refinement}
@@ -88,4 +107,3 @@ def with_option(err: ParameterError) -> ParameterError:
         if text.startswith(field_name + " ") and not text.startswith("--"):
             return ParameterError(f"{option}: {text}")
     return err
-

@@ -11,7 +11,6 @@ plots and ``rsm/fit.json`` are written, and a one-screen summary names the next 
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import sys
 import time
@@ -19,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from cad.errors import DataError, ParameterError
+from studies.args import add_cluster_arguments
 from studies.pipeline import check_trace_db, check_writable_dir, dumps
 
 
@@ -33,20 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument(
         "--out", type=Path, required=True, metavar="DIR", help="output folder (rerun to resume)"
     )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=1,
-        metavar="N",
-        help="local Dask worker processes (default 1: in this process)",
-    )
-    p.add_argument(
-        "--scheduler",
-        default=os.environ.get("DASK_SCHEDULER_ADDRESS"),
-        metavar="ADDRESS",
-        help="run on an existing Dask cluster, e.g. tcp://host:8786 "
-        "(default: $DASK_SCHEDULER_ADDRESS, else no cluster)",
-    )
+    add_cluster_arguments(p)
     p.add_argument(
         "--retry-failed", action="store_true", help="run only the points that failed before"
     )

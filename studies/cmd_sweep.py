@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
 from cad.errors import ParameterError
 from fe.hinge.protocol import DEFAULT_MU
-from studies.args import add_mesh_arguments, settings_from_args, with_option
+from studies.args import add_cluster_arguments, add_mesh_arguments, settings_from_args, with_option
 from studies.pipeline import dumps
 from studies.sweep import SweepSettings, run_sweep
 
@@ -52,20 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         metavar="N",
         help="increments per half cycle (default 20 at zero clearance, 60 with clearance)",
     )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=1,
-        metavar="N",
-        help="local Dask worker processes (default 1: in this process)",
-    )
-    p.add_argument(
-        "--scheduler",
-        default=os.environ.get("DASK_SCHEDULER_ADDRESS"),
-        metavar="ADDRESS",
-        help="run on an existing Dask cluster, e.g. tcp://host:8786 "
-        "(default: $DASK_SCHEDULER_ADDRESS, else no cluster)",
-    )
+    add_cluster_arguments(p)
     add_mesh_arguments(p)
     p.add_argument(
         "--study", default="general_hinge", help="study name in the trace (default general_hinge)"
