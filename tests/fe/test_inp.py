@@ -117,40 +117,34 @@ def test_elements_per_part_are_our_connectivity(hinge, hinge_deck):
         assert np.array_equal(rows[:, 1:] - 1, mesh.hexes[mesh.part_elements(part)])
 
 
+C3D8_REFERENCE = np.array(
+    [
+        [-1, -1, -1],
+        [1, -1, -1],
+        [1, 1, -1],
+        [-1, 1, -1],
+        [-1, -1, 1],
+        [1, -1, 1],
+        [1, 1, 1],
+        [-1, 1, 1],
+    ],
+    dtype=np.float64,
+)
+"""C3D8's reference node coordinates (ABAQUS manual), transcribed here, not taken from our
+element code: the tests check our connectivity against them."""
+
+
 def test_c3d8_node_order_gives_positive_volume(hinge):
     """C3D8's reference node coordinates (ABAQUS manual) at the connectivity we write."""
     _, mesh = hinge
-    c3d8_ref = np.array(
-        [
-            [-1, -1, -1],
-            [1, -1, -1],
-            [1, 1, -1],
-            [-1, 1, -1],
-            [-1, -1, 1],
-            [1, -1, 1],
-            [1, 1, 1],
-            [-1, 1, 1],
-        ],
-        dtype=np.float64,
-    )
+    c3d8_ref = C3D8_REFERENCE
     dN = c3d8_ref / 8.0  # trilinear shape-function gradients at the centre, (8, 3)
     J = np.einsum("eni,nj->eij", mesh.nodes[mesh.hexes], dN)  # (n_elem, 3, 3)
     assert np.all(np.linalg.det(J) > 0.0)
 
 
 def test_c3d8_faces_are_the_outer_faces_of_the_reference_hex():
-    ref = np.array(
-        [
-            [-1, -1, -1],
-            [1, -1, -1],
-            [1, 1, -1],
-            [-1, 1, -1],
-            [-1, -1, 1],
-            [1, -1, 1],
-            [1, 1, 1],
-            [-1, 1, 1],
-        ]
-    )
+    ref = C3D8_REFERENCE
     # S1 … S6 lie on ζ = −1, ζ = +1, η = −1, ξ = +1, η = +1, ξ = −1 (ABAQUS numbering).
     expected = [(2, -1), (2, 1), (1, -1), (0, 1), (1, 1), (0, -1)]
     for face, (axis, side) in zip(C3D8_FACES, expected, strict=True):
