@@ -56,7 +56,12 @@ def bilinear_weights(xi: FloatArray, eta: FloatArray) -> FloatArray:
 
 
 def project_on_facets(
-    points: FloatArray, nodes: FloatArray, facets: IntArray, *, n_candidates: int = 8
+    points: FloatArray,
+    nodes: FloatArray,
+    facets: IntArray,
+    *,
+    n_candidates: int = 8,
+    max_overshoot: float = 1e-6,
 ) -> tuple[IntArray, FloatArray, FloatArray]:
     """Closest-point projection of points on a set of bilinear quad facets.
 
@@ -65,6 +70,11 @@ def project_on_facets(
         nodes: Mesh coordinates, shape (n_nodes, 3) [mm].
         facets: Quads, shape (n_f, 4), int64.
         n_candidates: Nearest facet centroids tried per point.
+        max_overshoot: Largest local coordinate beyond ±1 accepted (clipped to the facet):
+            a tie accepts a node on the edge of its face that falls just outside the
+            other side's faceted edge. When it is larger than the default, the closest
+            facet within that overshoot wins (a badly shaped quad's projection can stall
+            inside it far from the point); otherwise the least overshoot wins.
 
     Returns:
         (facet index (m,), local coordinates (m, 2) in [-1, 1]², distance (m,) [mm]).
@@ -105,14 +115,20 @@ def project_on_facets(
         N = bilinear_weights(s[:, 0], s[:, 1])
         d = np.linalg.norm(np.einsum("mn,mni->mi", N, x) - points, axis=1)
         out = np.maximum(np.abs(s).max(axis=1) - 1.0, 0.0)
-        better = (out < best_out - 1e-12) | ((np.abs(out - best_out) <= 1e-12) & (d < best_d))
+        if max_overshoot > 1e-6:
+            ok = out <= max_overshoot
+            better = (ok & ((best_out > max_overshoot) | (d < best_d))) | (
+                ~ok & (best_out > max_overshoot) & (out < best_out)
+            )
+        else:
+            better = (out < best_out - 1e-12) | ((np.abs(out - best_out) <= 1e-12) & (d < best_d))
         best_f[better], best_x[better], best_d[better], best_out[better] = (
             f[better],
             s[better],
             d[better],
             out[better],
         )
-    if np.any(best_out > 1e-6):
+    if np.any(best_out > max_overshoot):
         i = int(np.argmax(best_out))
         raise MeshQualityError(
             f"contact point {i} at {points[i].round(4).tolist()} mm projects outside every master facet "
