@@ -41,7 +41,9 @@ from cad.bearing_geometry import (
     MIN_RING_WALL_FRACTION,
     MIN_WALL_MM,
     Arrangement,
+    BallModel,
     BearingHingeParams,
+    Interfaces,
     RaceGeometry,
     ball_center,
     contact_points,
@@ -71,12 +73,15 @@ __all__ = [
     "MIN_WALL_MM",
     "SURFACE_TOL_MM",
     "Arrangement",
+    "BallModel",
     "BearingHingeParams",
+    "Interfaces",
     "RaceGeometry",
     "ball_center",
     "contact_points",
     "make_bearing_hinge",
     "race_geometry",
+    "without_balls",
 ]
 
 SURFACE_TOL_MM = 1e-3
@@ -359,3 +364,16 @@ def _pairs(p: BearingHingeParams) -> tuple[SurfacePair, ...]:
                     )
                 )
     return (*bonded, *contact)
+
+
+def without_balls(model: HingeModel) -> HingeModel:
+    """Return the bearing hinge without its balls: the structure a ``hertz`` ball model needs.
+
+    The balls, their faces and the ball–raceway pairs go; the raceway faces
+    (``{inner,outer}_ring_{b}_groove_{k}``) stay, since they carry the patches each ball
+    loads and make the mesh finer there.
+    """
+    parts = tuple(p for p in model.parts if not p.name.startswith("ball_"))
+    faces = {k: f for k, f in model.faces.items() if not f.part.startswith("ball_")}
+    pairs = tuple(p for p in model.pairs if p.kind is PairKind.BONDED)
+    return HingeModel(model.kind, model.params, parts, faces, pairs)

@@ -53,6 +53,24 @@ MIN_WALL_MM = 1.0
 """Smallest lug wall and plate rim accepted [mm]."""
 
 
+class BallModel(Enum):
+    """How the cycle models the balls (``docs/bearing_model.md``)."""
+
+    HERTZ = "hertz"
+    """Each ball a Hertz spring between its two raceway patches, free to roll; rings meshed."""
+    FULL = "full"
+    """Every ball meshed, contact resolved on its surface (not implemented in the cycle yet)."""
+
+
+class Interfaces(Enum):
+    """How the rings, pin, clevis and plate are joined."""
+
+    BONDED = "bonded"
+    """Tied (the epoxy of the design)."""
+    CONTACT = "contact"
+    """Frictional contacts at zero clearance (the paper's ABAQUS model; not implemented yet)."""
+
+
 class Arrangement(Enum):
     """How the two bearings of the pair face each other."""
 
@@ -75,7 +93,7 @@ class BearingHingeParams:
         outer_curvature_ratio: Outer groove radius / D_w (f_o > 0.5).
         groove_depth_ratio: Depth of each groove below its land / D_w.
         arrangement: Face-to-face (preloadable by the plate) or back-to-back.
-        preload_n: Axial preload F_p on the plate [N], in [0, 200] as in the paper.
+        preload_n: Axial preload F_p on the plate [N], in [0, 500] (the paper: 0–200).
         tang_wall_mm: Tang wall around the bearing bore (the tang is D + 2·wall wide).
         tang_length_mm: Distance from the pin axis to the tang's fixed end.
         lip_thickness_mm: Tang lip under outer ring 0 (the abutment the preload reacts on).
@@ -93,6 +111,8 @@ class BearingHingeParams:
         lug_material: Tang, clevis and plate.
         pin_material: Pin.
         bearing_material: Rings and balls.
+        ball_model: How the cycle models the balls.
+        interfaces: How the cycle joins rings, pin, clevis and plate.
     """
 
     bore_mm: float = 8.0
@@ -122,6 +142,8 @@ class BearingHingeParams:
     lug_material: Material = field(default=ALUMINIUM)
     pin_material: Material = field(default=STEEL_45)
     bearing_material: Material = field(default=GCR15)
+    ball_model: BallModel = BallModel.HERTZ
+    interfaces: Interfaces = Interfaces.BONDED
 
     def __post_init__(self) -> None:
         self._check_bearing()
@@ -137,7 +159,13 @@ class BearingHingeParams:
         check_range("contact_angle_deg", self.contact_angle_deg, 0.0, 45.0, lo_open=True)
         check_range("inner_curvature_ratio", self.inner_curvature_ratio, 0.5, 0.6, lo_open=True)
         check_range("outer_curvature_ratio", self.outer_curvature_ratio, 0.5, 0.6, lo_open=True)
-        check_range("preload_n", self.preload_n, 0.0, 200.0)
+        check_range("preload_n", self.preload_n, 0.0, 500.0)
+        for name, kind in (("ball_model", BallModel), ("interfaces", Interfaces)):
+            if not isinstance(getattr(self, name), kind):
+                allowed = [m.value for m in kind]
+                raise ParameterError(
+                    f"{name} must be one of {allowed}, got {getattr(self, name)!r}"
+                )
         if self.arrangement is Arrangement.BACK_TO_BACK and self.preload_n > 0.0:
             raise ParameterError(
                 f"preload_n must be 0 for arrangement={self.arrangement.name} (a plate "

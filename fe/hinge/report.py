@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -14,6 +15,7 @@ from fe.assembly import stress_field
 from fe.element import ElementType, von_mises
 from fe.hinge.cycle import CycleResult, increment_displacements
 from fe.hinge.system import HingeSystem
+from mesh.hexmesh import HexMesh
 from mesh.io import add_vtu_field_data, vtu_name_codes
 
 FloatArray = npt.NDArray[np.float64]
@@ -118,32 +120,54 @@ def write_time_series(
     Returns:
         The .pvd file.
     """
-    folder.mkdir(parents=True, exist_ok=True)
     mesh = system.mesh
-    chosen = [
-        k
-        for k in range(len(result.increments))
-        if k % every == 0 or k == len(result.increments) - 1
-    ]
-    entries = []
+    chosen = frames_of(result, every)
     fields = increment_displacements(system, result, chosen)
-    names = vtu_name_codes(mesh)
-    tau = load_path(result)
-    for k, u in zip(chosen, fields, strict=True):
-        inc, state = result.increments[k], result.states[k]
-        cond = result.configs[inc.side]
-        sigma = stress_field(mesh, u, kind)
+
+    def contact_data(k: int) -> dict[str, FloatArray]:
+        state, cond = result.states[k], result.configs[result.increments[k].side]
         pressure = np.zeros(mesh.n_nodes)
         slip = np.zeros(mesh.n_nodes)
         pressure[cond.geo.slave] = state.p[:, 0] / cond.geo.area_mm2
         slip[cond.geo.slave] = np.linalg.norm(state.w[:, 1:] - cond.w0[:, 1:], axis=1)
+        return {"contact_pressure": pressure, "slip": slip}
+
+    return write_series(mesh, result, chosen, fields, contact_data, folder, kind)
+
+
+def frames_of(result: CycleResult, every: int) -> list[int]:
+    """Increments written to a series: every ``every``-th and the last."""
+    n = len(result.increments)
+    return [k for k in range(n) if k % every == 0 or k == n - 1]
+
+
+def write_series(
+    mesh: HexMesh,
+    result: CycleResult,
+    chosen: list[int],
+    fields: Iterable[FloatArray],
+    point_data: Callable[[int], dict[str, FloatArray]],
+    folder: Path,
+    kind: ElementType = ElementType.INCOMPATIBLE,
+) -> Path:
+    """Write the .vtu frames of ``chosen`` increments (displacement ``fields``) and the .pvd.
+
+    ``point_data(k)`` adds a hinge's own point fields to frame ``k``.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    entries = []
+    names = vtu_name_codes(mesh)
+    tau = load_path(result)
+    for k, u in zip(chosen, fields, strict=True):
+        inc = result.increments[k]
+        sigma = stress_field(mesh, u, kind)
         name = f"step_{k:04d}.vtu"
         meshio.write(
             folder / name,
             meshio.Mesh(
                 np.asarray(mesh.nodes),
                 [("hexahedron", mesh.hexes)],
-                point_data={"displacement": u, "contact_pressure": pressure, "slip": slip},
+                point_data={"displacement": u, **point_data(k)},
                 cell_data={
                     "stress": [sigma],
                     "von_mises": [von_mises(sigma)],

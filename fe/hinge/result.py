@@ -39,6 +39,11 @@ class Increment:
         friction_work: Friction work of the increment summed over points [N·mm].
         normal_work: Open/close work of the increment summed over points [N·mm].
         elastic_energy: Strain energy at the end of the increment [N·mm].
+        stiffness_n_per_mm: Tangent dF/dδ at the end of the increment [N/mm], where the
+            response is smooth (the bearing hinge's elastic balls); NaN where it is not
+            known. Where both ends of an increment have it, the loop area uses the cubic
+            Hermite rule in δ instead of the trapezoid (exact for a cubic F(δ)), so an
+            elastic but curved path (Hertz: F ∝ δ^{3/2}) encloses no spurious area.
     """
 
     stage: int
@@ -52,6 +57,7 @@ class Increment:
     friction_work: float
     normal_work: float
     elastic_energy: float
+    stiffness_n_per_mm: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -67,6 +73,8 @@ class CycleResult:
         states: Final contact state of each increment (for fields and files).
         configs: The condensed configuration of each side (+1, −1).
         timings_s: Wall time per phase [s].
+        preload_state: The bearing hinge's state after its preload step, one point per
+            ball (``fe.bearing.cycle``); None for the general hinge.
     """
 
     settings: CycleSettings
@@ -76,6 +84,7 @@ class CycleResult:
     states: tuple[ContactState, ...] = field(repr=False)
     configs: dict[int, Condensed] = field(repr=False)
     timings_s: dict[str, float] = field(default_factory=dict)
+    preload_state: ContactState | None = field(default=None, repr=False)
 
     def loop_arrays(
         self, *, with_free_play: bool = False
@@ -124,9 +133,12 @@ class CycleResult:
     def loop_work(self, loop: slice | None = None) -> float:
         """Loop area ∮F dδ of the last (or a given) loop [N·mm], trapezoidal."""
         F, d, _ = self.loop_arrays()
+        k = np.array([math.nan] + [i.stiffness_n_per_mm for i in self.increments])
         sl = loop or self.last_loop()
-        f, x = F[sl], d[sl]
-        return float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(x)))
+        f, x, k = F[sl], d[sl], k[sl]
+        h = np.diff(x)
+        seg = 0.5 * (f[1:] + f[:-1]) * h + np.nan_to_num(h**2 * (k[:-1] - k[1:]) / 12.0)
+        return float(np.sum(seg))
 
     def metrics(self) -> dict[str, float]:
         """Return η, W_cycle, U_max, peak displacements, stiffness and the energy balance."""

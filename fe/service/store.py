@@ -24,7 +24,7 @@ from fe.contact import ContactState
 from fe.hinge.protocol import CycleSettings
 from fe.hinge.result import CycleResult, Increment
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 
 _INC_FIELDS = tuple(f.name for f in dataclasses.fields(Increment))
 
@@ -68,6 +68,10 @@ class ResultStore:
             arrays["w"] = np.stack([s.w for s in result.states])
             arrays["status"] = np.stack([s.status for s in result.states])
             arrays["alpha"] = np.stack([s.alpha for s in result.states])
+        if result.preload_state is not None:
+            pre = result.preload_state
+            arrays |= {"pre_p": pre.p, "pre_w": pre.w, "pre_status": pre.status}
+            arrays["pre_alpha"] = pre.alpha
         fd, tmp = tempfile.mkstemp(dir=self.root, prefix=f".{key[:12]}-", suffix=".npz")
         try:
             with os.fdopen(fd, "wb") as fh:
@@ -97,6 +101,9 @@ class ResultStore:
                         ContactState(p, w, st, a)
                         for p, w, st, a in zip(z["p"], z["w"], z["status"], z["alpha"], strict=True)
                     )
+                preload = None
+                if "pre_p" in z:
+                    preload = ContactState(z["pre_p"], z["pre_w"], z["pre_status"], z["pre_alpha"])
         except (OSError, ValueError, KeyError) as err:
             raise DataError(f"{path}: not a readable hingelab result ({err})") from err
         if meta.get("format") != FORMAT_VERSION or meta.get("key") != key:
@@ -121,4 +128,5 @@ class ResultStore:
             states=states,
             configs={},
             timings_s={k: float(v) for k, v in meta["timings_s"].items()},
+            preload_state=preload,
         )

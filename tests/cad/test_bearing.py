@@ -249,7 +249,7 @@ BAD = [
     ("contact_angle_deg", {"contact_angle_deg": 0.0}),
     ("contact_angle_deg", {"contact_angle_deg": 50.0}),
     ("preload_n", {"preload_n": -1.0}),
-    ("preload_n", {"preload_n": 250.0}),
+    ("preload_n", {"preload_n": 520.0}),
     ("preload_n", {"arrangement": Arrangement.BACK_TO_BACK}),
     ("inner_curvature_ratio", {"inner_curvature_ratio": 0.5}),
     ("outer_curvature_ratio", {"outer_curvature_ratio": 0.49}),
