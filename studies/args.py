@@ -82,7 +82,7 @@ def settings_from_args(args: argparse.Namespace) -> MeshSettings:
         kw["size_mm"] = args.size
     if args.contact_size is not None:
         kw["contact_size_mm"] = args.contact_size
-    return MeshSettings.for_hinge(args.hinge, **kw)
+    return MeshSettings.for_hinge(args.hinge, balls=True, **kw)
 
 
 OPTION_OF_FIELD = {

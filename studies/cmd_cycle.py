@@ -56,6 +56,20 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="closed loops after the first loading (default 1)",
     )
     p.add_argument(
+        "--ball-model",
+        choices=("hertz", "full"),
+        default=None,
+        help="bearing hinge: balls as Hertz springs between meshed rings (hertz, default) "
+        "or meshed (full: not in the cycle yet)",
+    )
+    p.add_argument(
+        "--interfaces",
+        choices=("bonded", "contact"),
+        default=None,
+        help="bearing hinge: rings, pin, clevis and plate tied (bonded, default) or in "
+        "frictional contact (contact: not in the cycle yet)",
+    )
+    p.add_argument(
         "--frames",
         type=int,
         default=4,
@@ -70,6 +84,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab cycle``."""
+    from fe.bearing.system import BearingSystem
     from fe.hinge.report import write_loop_csv, write_loop_png, write_time_series
     from fe.service import DesignPoint, ModelService
 
@@ -93,22 +108,42 @@ def run(args: argparse.Namespace) -> int:
     system, meshed, settings = prepared.system, prepared.meshed, result.settings
     files = {k: str(v) for k, v in meshed.files.items()}
     files["loop_csv"] = str(write_loop_csv(result, args.out / "loop.csv"))
+    if isinstance(system, BearingSystem):
+        what = f"bearing hinge, Fp = {getattr(spec.hinge, 'preload_n', 0.0):g} N"
+    else:
+        what = f"general hinge, Δr = {point.clearance_mm:g} mm"
     files["loop_png"] = str(
         write_loop_png(
             result,
             args.out / "loop.png",
-            title=f"general hinge, Δr = {point.clearance_mm:g} mm, "
-            f"Fg = {settings.amplitude_n:g} N, μ = {settings.mu:g}",
+            title=f"{what}, Fg = {settings.amplitude_n:g} N"
+            + ("" if isinstance(system, BearingSystem) else f", μ = {settings.mu:g}"),
         )
     )
     if args.frames:
-        files["pvd"] = str(
-            write_time_series(system, result, args.out / "fields", every=args.frames)
-        )
+        if isinstance(system, BearingSystem):
+            from fe.bearing.report import write_bearing_series
+
+            pvd = write_bearing_series(system, result, args.out / "fields", every=args.frames)
+        else:
+            pvd = write_time_series(system, result, args.out / "fields", every=args.frames)
+        files["pvd"] = str(pvd)
     summary = _summary(result, system, meshed, files, time.perf_counter() - t0)
+    if isinstance(system, BearingSystem):
+        summary |= _bearing_summary(result, system, spec)
     (args.out / "result.json").write_text(dumps(summary))
     if args.json:
         print(dumps(summary))
+    elif isinstance(system, BearingSystem):
+        pre = summary["preload_step"]
+        print(
+            f"η = {summary['eta']:.2e}   W_cycle = {summary['W_cycle_Nmm']:.3g} N·mm "
+            f"(U_max {summary['U_max_Nmm']:.4g} N·mm; nothing dissipates in this model)   "
+            f"δ(+Fg) = {summary['disp_at_peak_mm'] * 1e3:.3f} µm   preload: plate travel "
+            f"{pre['plate_travel_mm'] * 1e3:.2f} µm, contact angle {pre['contact_angle_mean_deg']:.2f}°   "
+            f"{summary['wall_s']:.1f} s"
+        )
+        print(f"results in {args.out}/ (loop.csv, loop.png, result.json with ball loads, fields/)")
     else:
         print(
             f"η = {summary['eta']:.5f}   W_cycle = {summary['W_cycle_Nmm']:.5g} N·mm   "
@@ -131,12 +166,15 @@ def _spec_from_args(args: argparse.Namespace) -> Any:
     from fe.hinge.protocol import CycleSettings
     from fe.service import ModelSpec, check_spec
 
-    if args.model is None:
-        if args.hinge != "general":
-            raise ParameterError(
-                f"the load cycle runs --hinge general only for now, got --hinge {args.hinge} "
-                "(the bearing hinge is built and meshed: hingelab mesh --hinge bearing)"
-            )
+    if args.model is None and args.hinge == "bearing":
+        spec = _bearing_spec(args)
+    elif args.model is None:
+        for option, value in (("--ball-model", args.ball_model), ("--interfaces", args.interfaces)):
+            if value is not None:
+                raise ParameterError(
+                    f"{option} applies to the bearing hinge only, got {option} {value} "
+                    "with --hinge general"
+                )
         if args.preload is not None:
             raise ParameterError(
                 f"--preload applies to the bearing hinge only, got --preload {args.preload}"
@@ -147,8 +185,8 @@ def _spec_from_args(args: argparse.Namespace) -> Any:
         from validation.model_file import read_model
 
         given = [
-            f"--{n}"
-            for n in ("clearance", "preload", "size", "contact_size")
+            f"--{n.replace('_', '-')}"
+            for n in ("clearance", "preload", "size", "contact_size", "ball_model", "interfaces")
             if getattr(args, n) is not None
         ]
         if given or args.refinement != 0 or args.hinge != "general":
@@ -174,6 +212,71 @@ def _spec_from_args(args: argparse.Namespace) -> Any:
     except ParameterError as err:  # name the option the user typed, not only the field
         raise with_option(err) from err
     return dataclasses.replace(spec, cycle=cycle)
+
+
+def _bearing_spec(args: argparse.Namespace) -> Any:
+    """The bearing hinge's ModelSpec from the command-line options."""
+    from cad.bearing import BallModel, BearingHingeParams, Interfaces
+    from fe.hinge.protocol import CycleSettings
+    from fe.service import ModelSpec
+
+    if args.clearance is not None:
+        raise ParameterError(
+            f"--clearance: the bearing hinge has no clearance (its balls are preloaded), "
+            f"got --clearance {args.clearance}; use --preload N"
+        )
+    kw: dict[str, Any] = {}
+    if args.preload is not None:
+        kw["preload_n"] = args.preload
+    if args.ball_model is not None:
+        kw["ball_model"] = BallModel(args.ball_model)
+    if args.interfaces is not None:
+        kw["interfaces"] = Interfaces(args.interfaces)
+    try:
+        hinge = BearingHingeParams(**kw)
+    except ParameterError as err:
+        raise with_option(err) from err
+    mesh_kw: dict[str, float | int] = {"refinement": args.refinement}
+    if args.size is not None:
+        mesh_kw["size_mm"] = args.size
+    if args.contact_size is not None:
+        mesh_kw["contact_size_mm"] = args.contact_size
+    from mesh.settings import MeshSettings
+
+    balls = hinge.ball_model is BallModel.FULL
+    return ModelSpec("bearing", hinge, MeshSettings.for_hinge("bearing", balls=balls, **mesh_kw),
+                     CycleSettings())  # fmt: skip
+
+
+def _bearing_summary(result: Any, system: Any, spec: Any) -> dict[str, Any]:
+    """What the bearing hinge adds to the cycle's JSON: preload, balls, model choices."""
+    from fe.bearing.cycle import ball_state_of, elastic_energy
+    from fe.bearing.report import ball_table
+
+    pre = ball_state_of(system, result.preload_state)
+    m = result.metrics()
+    return {
+        "hinge": "bearing",
+        "preload_N": spec.hinge.preload_n,
+        "ball_model": spec.hinge.ball_model.value,
+        "interfaces": spec.hinge.interfaces.value,
+        "n_balls": system.n_balls,
+        "ball_hertz_constant_N_per_mm1.5": system.balls.k_n,
+        "preload_step": {
+            "plate_travel_mm": float(pre.alpha[2]),
+            "axial_float_mm": float(pre.alpha[1]),
+            "ball_load_mean_N": float(pre.load_n.mean()),
+            "contact_angle_mean_deg": float(pre.angle_deg.mean()),
+            "elastic_energy_Nmm": elastic_energy(system, pre),
+            "dissipation_Nmm": 0.0,
+        },
+        "balls": ball_table(system, result),
+        "energy_balance_abs_Nmm": abs(
+            m["W_cycle_Nmm"] - m["elastic_energy_change_Nmm"] - m["friction_work_Nmm"]
+        ),
+        "energy_balance_note": "nothing can dissipate (bonded interfaces, free-rolling balls): "
+        "W_cycle is the loop's quadrature error, compare energy_balance_abs_Nmm with U_max_Nmm",
+    }
 
 
 def _progress_bar(args: argparse.Namespace) -> Any:
@@ -203,7 +306,9 @@ def _summary(
         "clearance_mm": result.clearance_mm,
         "n_dof": system.n_dof,
         "n_hex": meshed.report.n_hex,
-        "n_contact_pairs": len(result.configs[1].geo.slave),
+        "n_contact_pairs": len(result.configs[1].geo.slave)
+        if result.configs
+        else len(result.states[-1].p),
         "n_surface_pairs": len(system.mesh.pairs),
         "increments": [
             {

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from cad.errors import HingelabError, ParameterError
+from fe.bearing.system import BearingSystem, build_bearing_system
 from fe.hinge.condensed import Condensed
 from fe.hinge.cycle import run_cycle
 from fe.hinge.result import CycleResult
@@ -38,8 +39,9 @@ from fe.service.spec import (
     HingeKind,
     ModelSpec,
     geometry_key,
+    hinge_at,
     result_key,
-    with_clearance,
+    structure_of,
 )
 from fe.service.store import ResultStore
 
@@ -54,7 +56,7 @@ class Prepared:
         key: Its geometry key.
         clearance_mm: Its radial clearance [mm] (from the model's exact cylinders).
         meshed: The CAD model, mesh, quality report and the files written.
-        system: The factorised hinge.
+        system: The factorised hinge (``BearingSystem`` for the bearing hinge).
         configs: Condensed configurations of plain cycles by contact window
             (``CycleSettings.contact_window``), once a cycle has made them.
         effect_configs: Condensed configurations without window that effects start from
@@ -65,7 +67,7 @@ class Prepared:
     key: str
     clearance_mm: float
     meshed: MeshedHinge
-    system: HingeSystem
+    system: HingeSystem | BearingSystem
     configs: dict[float, dict[int, Condensed]] = field(default_factory=dict)
     effect_configs: dict[int, Condensed] | None = None
     setup_s: float = 0.0
@@ -105,12 +107,28 @@ def check_spec(spec: ModelSpec) -> None:
     """Refuse a specification the service cannot run, naming what is wrong.
 
     Raises:
-        ParameterError: For a hinge kind whose cycle is not implemented.
+        ParameterError: For a bearing-hinge model choice whose cycle is not implemented
+            (``ball_model = "full"``, ``interfaces = "contact"``) or effects on it.
     """
-    if spec.kind != HingeKind.GENERAL:
+    from cad.bearing import BallModel, BearingHingeParams, Interfaces
+
+    if spec.kind != HingeKind.BEARING or not isinstance(spec.hinge, BearingHingeParams):
+        return
+    if spec.hinge.ball_model is not BallModel.HERTZ:
         raise ParameterError(
-            f"the load cycle is implemented for kind 'general' only; got kind {spec.kind!r} "
-            "(the bearing hinge is built and meshed: hingelab mesh --hinge bearing)"
+            f"ball_model must be 'hertz' for the bearing cycle (meshed balls are not in the "
+            f"cycle yet: hingelab mesh --hinge bearing builds them), got "
+            f"{spec.hinge.ball_model.value!r}"
+        )
+    if spec.hinge.interfaces is not Interfaces.BONDED:
+        raise ParameterError(
+            f"interfaces must be 'bonded' for the bearing cycle (frictional interfaces are "
+            f"not implemented yet), got {spec.hinge.interfaces.value!r}"
+        )
+    if spec.effects:
+        raise ParameterError(
+            f"effects act on the general hinge's contacts only; the bearing model has "
+            f"{sorted(spec.effects)}"
         )
 
 
@@ -154,14 +172,20 @@ class ModelService:
             self._prepared.move_to_end(key)
             return self._prepared[key]
         t0 = time.perf_counter()
-        hinge = with_clearance(spec, clearance_mm)
-        if not isinstance(hinge, GeneralHingeParams):  # check_spec refused other kinds
-            raise ParameterError(f"kind {spec.kind!r} has no general-hinge geometry")
-        model = make_general_hinge(hinge)
+        hinge = structure_of(spec, clearance_mm)
         out = None if self.geometry_dir is None else self.geometry_dir(clearance_mm)
-        meshed = build_and_mesh(model, spec.mesh, out)
-        system = build_system(meshed.mesh, cache_dir=self.cache_dir)
-        prepared = Prepared(key, system.clearance_mm, meshed, system)
+        system: HingeSystem | BearingSystem
+        if isinstance(hinge, GeneralHingeParams):
+            meshed = build_and_mesh(make_general_hinge(hinge), spec.mesh, out)
+            system = build_system(meshed.mesh, cache_dir=self.cache_dir)
+            clearance = system.clearance_mm
+        else:
+            from cad.bearing import make_bearing_hinge, without_balls
+
+            meshed = build_and_mesh(without_balls(make_bearing_hinge(hinge)), spec.mesh, out)
+            system = build_bearing_system(meshed.mesh, hinge)
+            clearance = 0.0
+        prepared = Prepared(key, clearance, meshed, system)
         prepared.setup_s = time.perf_counter() - t0
         self.setup_s += prepared.setup_s
         self._prepared[key] = prepared
@@ -211,6 +235,14 @@ class ModelService:
         settings = dataclasses.replace(spec.cycle, amplitude_n=point.amplitude_n)
         t0 = time.perf_counter()
         try:
+            if isinstance(prepared.system, BearingSystem):
+                from fe.bearing.cycle import run_bearing_cycle
+
+                hinge = hinge_at(spec, point)
+                preload = float(getattr(hinge, "preload_n", 0.0))
+                return run_bearing_cycle(
+                    prepared.system, settings, preload, progress=progress
+                ).result
             if spec.effects:
                 from fe.effects import run_cycle_with_effects
 

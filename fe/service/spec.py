@@ -85,10 +85,12 @@ class DesignPoint:
     Attributes:
         amplitude_n: Force amplitude Fg [N].
         clearance_mm: Radial clearance Δr of the general hinge [mm].
+        preload_n: Axial preload F_p of the bearing hinge [N]; None: the model's own.
     """
 
     amplitude_n: float
     clearance_mm: float = 0.0
+    preload_n: float | None = None
 
     def __post_init__(self) -> None:
         check_range("amplitude_n", self.amplitude_n, 0.0, 1e6, lo_open=True)
@@ -96,21 +98,72 @@ class DesignPoint:
         # 0.0 and -0.0, 300 and 300.0 are one point (one key, one run)
         object.__setattr__(self, "amplitude_n", float(self.amplitude_n) + 0.0)
         object.__setattr__(self, "clearance_mm", float(self.clearance_mm) + 0.0)
+        if self.preload_n is not None:
+            check_range("preload_n", self.preload_n, 0.0, 500.0)
+            object.__setattr__(self, "preload_n", float(self.preload_n) + 0.0)
 
     def label(self) -> str:
-        """Folder name of the point, e.g. ``c0.100_F300``."""
+        """Folder name of the point, e.g. ``c0.100_F300`` or ``p100_F300``."""
+        if self.preload_n is not None:
+            return f"p{self.preload_n:g}_F{self.amplitude_n:g}"
         return f"c{self.clearance_mm:.3f}_F{self.amplitude_n:g}"
+
+    def key_fields(self) -> dict[str, float]:
+        """What identifies the point in a result key.
+
+        No preload entry when it is None, so the general hinge's keys do not change.
+        """
+        out = {"amplitude_n": self.amplitude_n, "clearance_mm": self.clearance_mm}
+        if self.preload_n is not None:
+            out["preload_n"] = self.preload_n
+        return out
 
 
 def with_clearance(spec: ModelSpec, clearance_mm: float) -> HingeParams:
     """Return the spec's hinge parameters at another radial clearance (general hinge).
 
+    The bearing hinge has no clearance: its parameters are returned as they are for 0.
+
     Raises:
-        ParameterError: For a hinge kind without clearance, or an out-of-range value.
+        ParameterError: For a clearance on the bearing hinge, or an out-of-range value.
     """
     if not isinstance(spec.hinge, GeneralHingeParams):
-        raise ParameterError(f"the {spec.kind} hinge has no clearance_mm")
+        if clearance_mm != 0.0:
+            raise ParameterError(
+                f"clearance_mm must be 0 for the {spec.kind} hinge (it has none), "
+                f"got {clearance_mm!r}"
+            )
+        return spec.hinge
     return dataclasses.replace(spec.hinge, clearance_mm=clearance_mm)
+
+
+def hinge_at(spec: ModelSpec, point: DesignPoint) -> HingeParams:
+    """The hinge parameters at a design point (its clearance, its preload if it has one).
+
+    Raises:
+        ParameterError: For a preload on the general hinge or a clearance on the bearing one.
+    """
+    hinge = with_clearance(spec, point.clearance_mm)
+    if point.preload_n is None:
+        return hinge
+    if not isinstance(hinge, BearingHingeParams):
+        raise ParameterError(
+            f"preload_n applies to the bearing hinge only, got {point.preload_n!r} "
+            f"for the {spec.kind} hinge"
+        )
+    return dataclasses.replace(hinge, preload_n=point.preload_n)
+
+
+def structure_of(spec: ModelSpec, clearance_mm: float) -> HingeParams:
+    """The hinge parameters that determine the mesh and its condensation.
+
+    The bearing hinge's preload is a load on an unchanged structure, so every preload
+    shares one geometry (one factorisation).
+    """
+    hinge = with_clearance(spec, clearance_mm)
+    if isinstance(hinge, BearingHingeParams):
+        return dataclasses.replace(hinge, preload_n=0.0)
+    return hinge
 
 
 def package_version() -> str:
@@ -153,7 +206,7 @@ def geometry_key(spec: ModelSpec, clearance_mm: float) -> str:
     return content_hash(
         {
             "kind": spec.kind,
-            "hinge": with_clearance(spec, clearance_mm),
+            "hinge": structure_of(spec, clearance_mm),
             "mesh": spec.mesh,
             "version": package_version(),
         }
@@ -170,11 +223,11 @@ def result_key(spec: ModelSpec, point: DesignPoint) -> str:
     return content_hash(
         {
             "kind": spec.kind,
-            "hinge": with_clearance(spec, point.clearance_mm),
+            "hinge": hinge_at(spec, point),
             "mesh": spec.mesh,
             "cycle": cycle,
             "effects": spec.effects,
-            "point": point,
+            "point": point.key_fields(),
             "contact": ContactSettings(),
             "version": package_version(),
         }

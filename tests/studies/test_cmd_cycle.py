@@ -77,14 +77,53 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
     [
         (["--amplitude", "-1"], "--amplitude: amplitude_n"),
         (["--mu", "-0.3"], "--mu: mu"),
-        (["--hinge", "bearing"], "--hinge general only"),
         (["--preload", "50"], "--preload applies to the bearing hinge only"),
+        (["--hinge", "bearing", "--clearance", "0.1"], "--clearance: the bearing hinge has no"),
+        (["--hinge", "bearing", "--preload", "600"], "--preload: preload_n must be in [0, 500]"),
+        (["--hinge", "bearing", "--ball-model", "full"], "ball_model must be 'hertz'"),
+        (["--hinge", "bearing", "--interfaces", "contact"], "interfaces must be 'bonded'"),
+        (["--ball-model", "hertz"], "--ball-model applies to the bearing hinge only"),
     ],
-    ids=["negative-amplitude", "negative-mu", "bearing-not-yet", "preload-on-general"],
+    ids=[
+        "negative-amplitude",
+        "negative-mu",
+        "preload-on-general",
+        "clearance-on-bearing",
+        "preload-too-large",
+        "full-balls-not-yet",
+        "contact-interfaces-not-yet",
+        "ball-model-on-general",
+    ],
 )
 def test_cycle_bad_input(tmp_path, capsys, argv, needle):
     assert main(["cycle", *argv, "--out", str(tmp_path), "--no-progress"]) == 1
     assert needle in capsys.readouterr().err
+
+
+def test_bearing_cycle_writes_the_common_result_and_the_balls(tmp_path, capsys):
+    argv = ["cycle", "--hinge", "bearing", "--preload", "100", "--amplitude", "300"]
+    argv += ["--size", "4", "--contact-size", "0.8", "--frames", "20", "--out", str(tmp_path)]
+    assert main([*argv, "--json", "--no-progress"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("eta", "W_cycle_Nmm", "U_max_Nmm", "disp_at_peak_mm", "timings_s", "increments"):
+        assert key in out
+    assert out["hinge"] == "bearing"
+    assert out["ball_model"] == "hertz"
+    assert abs(out["W_cycle_Nmm"]) < 1e-4 * out["U_max_Nmm"]  # nothing dissipates
+    pre = out["preload_step"]
+    assert pre["dissipation_Nmm"] == 0.0
+    assert 15.0 < pre["contact_angle_mean_deg"] < 20.0  # Jones: 17.9° at 100 N, rigid rings
+    plus = out["balls"]["plus_Fg"]
+    assert len(plus) == 20
+    # the ball at azimuth 0 (toward the load) carries the most; inner = outer load
+    loads = [b["inner_load_N"] for b in plus if b["bearing"] == 0]
+    assert loads[0] == max(loads)
+    assert all(b["inner_load_N"] == b["outer_load_N"] for b in plus)
+    assert (tmp_path / "fields" / "cycle.pvd").is_file()
+    import meshio
+
+    frame = meshio.read(next((tmp_path / "fields").glob("step_*.vtu")))
+    assert "ball_load" in frame.point_data
 
 
 MODEL = """[hinge]
