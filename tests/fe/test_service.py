@@ -89,3 +89,48 @@ def test_run_cycle_refuses_a_clearance_the_mesh_does_not_have():
 def test_design_point_range_is_checked():
     with pytest.raises(ParameterError, match="amplitude_n"):
         DesignPoint(-5.0)
+
+
+def _bearing_spec():
+    from cad.bearing import BearingHingeParams
+
+    mesh = MeshSettings.for_hinge(
+        "bearing", balls=False, size_mm=4.0, contact_size_mm=0.8, part_sizes_mm=(("ring", 1.2),)
+    )
+    return ModelSpec("bearing", BearingHingeParams(), mesh, CycleSettings(increments_per_stage=8))
+
+
+def test_bearing_preloads_share_one_geometry_and_round_trip_the_store(tmp_path):
+    spec = _bearing_spec()
+    points = [DesignPoint(200.0, preload_n=fp) for fp in (0.0, 100.0)]
+    assert result_key(spec, points[0]) != result_key(spec, points[1])
+    service = ModelService(store=ResultStore(tmp_path))
+    runs = service.run(spec, points)
+    assert all(r.ok for r in runs)
+    assert len(service._prepared) == 1  # the preload is a load: one mesh, one factorisation
+    assert [r.point.label() for r in runs] == ["p0_F200", "p100_F200"]
+    again = ModelService(store=ResultStore(tmp_path)).run(spec, points)
+    assert all(r.cached for r in again)
+    for first, second in zip(runs, again, strict=True):
+        a, b = first.result, second.result
+        assert b.metrics()["disp_at_peak_mm"] == a.metrics()["disp_at_peak_mm"]
+        assert b.preload_state is not None
+        np.testing.assert_array_equal(b.preload_state.p, a.preload_state.p)
+    # the preload stiffens the hinge
+    d = [r.result.metrics()["delta_max_mm"] for r in runs]
+    assert d[1] < d[0]
+
+
+def test_bearing_point_and_spec_mistakes_are_named():
+    from cad.bearing import BallModel, BearingHingeParams
+
+    spec = _bearing_spec()
+    with pytest.raises(ParameterError, match="clearance_mm must be 0 for the bearing hinge"):
+        result_key(spec, DesignPoint(200.0, clearance_mm=0.1))
+    with pytest.raises(ParameterError, match="preload_n applies to the bearing hinge only"):
+        result_key(_spec(), DesignPoint(200.0, preload_n=50.0))
+    with pytest.raises(ParameterError, match="preload_n must be in"):
+        DesignPoint(200.0, preload_n=-5.0)
+    full = dataclasses.replace(spec, hinge=BearingHingeParams(ball_model=BallModel.FULL))
+    with pytest.raises(ParameterError, match="ball_model must be 'hertz'"):
+        ModelService().run(full, [DesignPoint(200.0)])
