@@ -277,6 +277,23 @@ def _named_faces(p: BearingHingeParams) -> dict[str, NamedFace]:
             _zbox((-p.width_mm, -p.width_mm), r_o + SURFACE_TOL_MM),
         ),
     ]
+    land = race_geometry(p, 0).inner_land_mm + SURFACE_TOL_MM  # the inner rings abut at z = 0
+    faces += [
+        NamedFace(
+            "inner_ring_0_top",
+            "inner_ring_0",
+            FaceRole.BONDED_SLAVE,
+            Plane((0, 0, 0), (0, 0, 1)),
+            _zbox((0.0, 0.0), land),
+        ),
+        NamedFace(
+            "inner_ring_1_bottom",
+            "inner_ring_1",
+            FaceRole.BONDED_MASTER,
+            Plane((0, 0, 0), (0, 0, -1)),
+            _zbox((0.0, 0.0), land),
+        ),
+    ]
     for k, arm in ((1, "clevis_1"), (2, "clevis_2")):
         faces.append(
             NamedFace(f"pin_clevis_{k}", "pin", FaceRole.BONDED_SLAVE, pin_surface, _zbox(z[arm]))
@@ -337,6 +354,9 @@ def _pairs(p: BearingHingeParams) -> tuple[SurfacePair, ...]:
         SurfacePair("pin-clevis_2", "pin_clevis_2", "clevis_hole_2", PairKind.BONDED),
         SurfacePair("plate-outer_ring_1", "plate_seat", "outer_ring_1_top", PairKind.BONDED),
         SurfacePair("outer_ring_0-tang_lip", "outer_ring_0_bottom", "tang_lip", PairKind.BONDED),
+        SurfacePair(
+            "inner_ring_0-inner_ring_1", "inner_ring_0_top", "inner_ring_1_bottom", PairKind.BONDED
+        ),
     ]
     contact = []
     for b in (0, 1):

@@ -379,7 +379,9 @@ ZERO_REFINE = 8
 """Halvings of the force toward F = 0 on each side of a crossing without preload."""
 
 
-def _with_zero(targets: FloatArray, f_from: float, preload_n: float) -> FloatArray:
+def _with_zero(
+    targets: FloatArray, f_from: float, preload_n: float, *, at_zero: bool = True
+) -> FloatArray:
     """The targets with F = 0 added where the stage crosses it.
 
     Unpreloaded Hertz balls make F(δ) ∝ |δ|^{3/2} around F = 0 (no stiffness at zero
@@ -395,10 +397,11 @@ def _with_zero(targets: FloatArray, f_from: float, preload_n: float) -> FloatArr
     j = int(cross[0])
     before, after = path[j], path[j + 1]
     if preload_n > 0:
-        middle = np.array([0.0])
+        middle = np.array([0.0] if at_zero else [])
     else:
         halves = 0.5 ** np.arange(1, ZERO_REFINE + 1)
-        middle = np.concatenate([before * halves, [0.0], after * halves[::-1]])
+        zero = [0.0] if at_zero else []
+        middle = np.concatenate([before * halves, zero, after * halves[::-1]])
     return np.concatenate([t[:j], middle, t[j:]])
 
 

@@ -162,13 +162,17 @@ def split_window(geo: ContactGeometry, window_mm: float) -> tuple[ContactGeometr
     return pick(inside), pick(~inside)
 
 
-def contact_geometry(mesh: HexMesh, shift_mm: dict[str, FloatArray]) -> ContactGeometry:
+def contact_geometry(
+    mesh: HexMesh, shift_mm: dict[str, FloatArray], *, max_overshoot: float = 1e-6
+) -> ContactGeometry:
     """Build the contact points of every contact pair in a configuration.
 
     Args:
         mesh: The hinge mesh (pairs, facet sets and exact surfaces).
         shift_mm: Pair name → rigid offset of the slave relative to the master in this
             configuration, shape (3,) [mm].
+        max_overshoot: As ``project_on_facets`` (a slave node on the edge of a face that
+            ends where the master face ends falls a hair outside its faceted edge).
 
     Returns:
         The contact geometry, points ordered pair by pair.
@@ -192,7 +196,9 @@ def contact_geometry(mesh: HexMesh, shift_mm: dict[str, FloatArray]) -> ContactG
         t2 = np.cross(n, t1)
         foot = closest_point(master, x)
         facets = mesh.facet_sets[pair.master]
-        f, s, _ = project_on_facets(foot, np.asarray(mesh.nodes), facets)
+        f, s, _ = project_on_facets(
+            foot, np.asarray(mesh.nodes), facets, max_overshoot=max_overshoot
+        )
         parts.append(
             (
                 ids,

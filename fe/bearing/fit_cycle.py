@@ -1,0 +1,330 @@
+"""The load cycle of the bearing hinge with frictional fits (``fe.bearing.fits``).
+
+Each increment (force F on the clevis, preload shift σ held) is a Newton iteration on the
+ball coordinates ``v`` around one frictional contact solve per iteration::
+
+    H = ∂f/∂v at v_k (regularised below a small approach, as fe.bearing.cycle),
+    ΔH = H − H_ref,  M = I + W_b ΔH,  N = ΔH M⁻¹,  c = f(v_k) − H_ref v_k − ΔH v_k
+    W_eff = W_c − X N Xᵀ,   w_free = w0 − X (c − N W_b c)
+    (p, α) = solve_increment(W_eff, w_free, state_prev, G, e = (0, …, 0, −F))
+    v_{k+1} = M⁻¹ (Xᵀ p − W_b c)
+
+until ``v`` stops changing. Every contact solve starts from the previous increment's
+state, so the friction work is that of the converged iterate. The preload step finds σ
+by a secant iteration on the plate force (F = 0); it is one proportional increment, and
+its friction work is reported (it is not zero by construction: the fits may slip while
+the rings deform under the preload).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from threadpoolctl import threadpool_limits
+
+from cad.errors import ConvergenceError, ParameterError
+from fe.bearing.cycle import REG_FRACTION, _block_diag, _with_zero, ball_law
+from fe.bearing.fits import GRIP, N_RIGID, FitSystem
+from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
+from fe.hinge.protocol import CycleSettings, stage_targets
+from fe.hinge.result import CycleResult, Increment
+
+logger = logging.getLogger(__name__)
+
+FloatArray = npt.NDArray[np.float64]
+
+MAX_BALL_ITER = 30
+"""Ball Newton iterations (each one contact solve) per increment."""
+
+
+@dataclass(frozen=True)
+class FitState:
+    """A converged state: the contacts and the balls.
+
+    Attributes:
+        contact: Contact state of the fits (forces, relative displacements, status, α).
+        v_mm: Ball coordinates (radial, axial per ball), shape (2 n_b,) [mm].
+        preload_mm: Preload shift σ [mm].
+        result: The last contact solve (works, counts), or None for the unloaded state.
+        ball_iterations: Ball Newton iterations.
+    """
+
+    contact: ContactState
+    v_mm: FloatArray
+    preload_mm: float
+    result: IncrementResult | None
+    ball_iterations: int
+
+
+def _ball(system: FitSystem, v: FloatArray, sigma: float, reg: float):  # type: ignore[no-untyped-def]
+    n = system.n_balls
+    shifted = (v + sigma * system.preload_shift).reshape(n, 2)
+    f, Q, approach, H = ball_law(system.balls.d0, shifted, system.balls.k_n, reg)
+    return f.ravel(), Q, approach, _block_diag(H)
+
+
+def solve_fit_increment(
+    system: FitSystem,
+    prev: FitState,
+    force_n: float,
+    sigma: float,
+    contact: ContactSettings,
+    *,
+    ref_load_n: float,
+    increment: int = 0,
+) -> FitState:
+    """Solve one increment from ``prev`` to the clevis force ``force_n`` at preload shift σ.
+
+    Raises:
+        ConvergenceError: If the contact solve or the ball iteration does not converge.
+    """
+    n2 = 2 * system.n_balls
+    q_ref = max(ref_load_n, 1.0) / system.n_balls
+    ref_mm = (q_ref / system.balls.k_n) ** (2.0 / 3.0)
+    reg = REG_FRACTION * ref_mm
+    m = system.n_points
+    e = np.zeros(N_RIGID)
+    e[GRIP] = -force_n
+    w0 = np.zeros((m, 3))
+    w0[:, 0] = system.geo.g0
+    v = np.array(prev.v_mm, dtype=float)
+    start = (np.asarray(prev.contact.p), np.asarray(prev.contact.alpha))
+    step = np.inf
+    for it in range(1, MAX_BALL_ITER + 1):
+        f, _, _, H = _ball(system, v, sigma, reg)
+        dH = H - system.H_ref
+        M = np.eye(n2) + system.W_b @ dH
+        N = dH @ np.linalg.inv(M)
+        c = f - system.H_ref @ v - dH @ v
+        W_eff = system.W_c - system.X @ N @ system.X.T
+        w_free = w0 - (system.X @ (c - N @ (system.W_b @ c))).reshape(m, 3)
+        res = solve_increment(
+            0.5 * (W_eff + W_eff.T), w_free, prev.contact, contact, G=system.G, e=e,
+            increment=increment, start=start,
+        )  # fmt: skip
+        p = np.ravel(res.state.p)
+        v_new = np.linalg.solve(M, system.X.T @ p - system.W_b @ c)
+        step = float(np.abs(v_new - v).max())
+        v = v_new
+        start = (np.asarray(res.state.p), np.asarray(res.state.alpha))
+        if step <= contact.tol * max(float(np.abs(v).max()), ref_mm) * 10:
+            return FitState(res.state, v, sigma, res, it)
+    raise ConvergenceError(
+        "the balls did not converge around the frictional fits",
+        increment=increment,
+        iteration=MAX_BALL_ITER,
+        residual=step,
+    )
+
+
+def fit_energy(system: FitSystem, s: FitState) -> float:
+    """Strain energy of the structure plus the balls' Hertz energy [N·mm]."""
+    p = np.ravel(s.contact.p)
+    f, _, approach, _ = _ball(system, s.v_mm, s.preload_mm, 0.0)
+    r_b = f - system.H_ref @ s.v_mm
+    w_el = system.W_c @ p - system.X @ r_b
+    structure = 0.5 * (p @ w_el - f @ s.v_mm)
+    balls = 0.4 * system.balls.k_n * np.maximum(approach, 0.0) ** 2.5
+    return float(structure + balls.sum())
+
+
+def unloaded(system: FitSystem) -> FitState:
+    """The state before anything is loaded."""
+    m = system.n_points
+    w0 = np.zeros((m, 3))
+    w0[:, 0] = system.geo.g0
+    return FitState(
+        ContactState.initial(m, N_RIGID, w=w0), np.zeros(2 * system.n_balls), 0.0, None, 0
+    )
+
+
+def fit_preload(
+    system: FitSystem, preload_n: float, contact: ContactSettings
+) -> tuple[FitState, float]:
+    """The preload step: σ such that the plate force is F_p (F = 0); returns (state, friction work).
+
+    Raises:
+        ParameterError: If ``preload_n`` is outside [0, 500] N.
+        ConvergenceError: With increment 0 if σ or the state does not converge.
+    """
+    if not 0.0 <= preload_n <= 500.0:
+        raise ParameterError(f"preload_n must be in [0, 500] N, got {preload_n!r}")
+    s0 = unloaded(system)
+    if preload_n == 0.0:
+        return s0, 0.0
+    b1 = system.balls.bearing == 1
+
+    def plate_force(sigma: float) -> tuple[float, FitState]:
+        st = solve_fit_increment(system, s0, 0.0, sigma, contact, ref_load_n=preload_n)
+        f = _ball(system, st.v_mm, sigma, 0.0)[0].reshape(-1, 2)
+        return float(f[b1, 1].sum()), st
+
+    # rigid-ring guess: both bearings compress by δ_a, σ ≈ 2 δ_a
+    from fe.bearing.pair import axial_state_from_load, bearing_from_params
+
+    sig = [
+        2.0
+        * axial_state_from_load(bearing_from_params(system.params), preload_n).axial_deflection_mm
+    ]
+    sig.append(1.2 * sig[0])
+    vals = [plate_force(s)[0] - preload_n for s in sig]
+    for _ in range(30):
+        if abs(vals[-1]) <= 1e-9 * preload_n:
+            break
+        new = sig[-1] - vals[-1] * (sig[-1] - sig[-2]) / (vals[-1] - vals[-2])
+        sig.append(new)
+        vals.append(plate_force(new)[0] - preload_n)
+    else:
+        raise ConvergenceError(
+            f"the preload step (F_p = {preload_n:g} N) did not converge",
+            increment=0,
+            iteration=30,
+            residual=abs(vals[-1]),
+        )
+    _, st = plate_force(sig[-1])
+    work = 0.0 if st.result is None else float(np.sum(st.result.friction_work))
+    return st, work
+
+
+FIT_RIGID_RCOND = 1e-6
+"""``ContactSettings.rigid_rcond`` for the fits. The pin carries no net load in the preload
+step and its spin and axial slide are then held by friction alone: with the default
+1e-10 the contact Newton stalled (residual 1e-5 after 200 iterations) on the coarse
+mesh; with 1e-6 those nearly undetermined directions are left to the minimum norm and it
+converged in 33 iterations."""
+
+FIT_R_SCALE = 0.1
+"""``ContactSettings.r_scale`` for the fits (33 iterations against 174 at 1.0, same mesh)."""
+
+
+FIT_TOL = 1e-8
+"""Contact tolerance of the fits: the first loaded increment stalled at ρ ≈ 3e-9 against
+the general hinge's 1e-10 (coarse mesh, F_p = 100 N)."""
+
+
+def fit_contact_settings(settings: CycleSettings) -> ContactSettings:
+    """Contact-solver options of the fits (see ``FIT_RIGID_RCOND``)."""
+    return ContactSettings(
+        mu=settings.mu,
+        tol=max(settings.tol, FIT_TOL),
+        max_iter=max(settings.max_iter, 200),
+        rigid_rcond=FIT_RIGID_RCOND,
+        r_scale=FIT_R_SCALE,
+    )
+
+
+def run_fit_cycle(
+    system: FitSystem,
+    settings: CycleSettings,
+    preload_n: float,
+    *,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[CycleResult, FitState, float]:
+    """Preload, then cycle the clevis force; returns (cycle, preload state, preload friction work).
+
+    Raises:
+        ConvergenceError: With the increment; ``partial`` holds the increments that converged.
+    """
+    contact = fit_contact_settings(settings)
+    t0 = time.perf_counter()
+    with threadpool_limits(limits=settings.blas_threads, user_api="blas"):
+        # assembly: the rings are set into place frictionlessly (the fits' friction history
+        # starts once the hinge is assembled), so the preload step dissipates nothing
+        pre, pre_work = fit_preload(system, preload_n, dataclasses.replace(contact, mu=0.0))
+        t_pre = time.perf_counter() - t0
+        incs: list[Increment] = []
+        states: list[ContactState] = []
+        total = sum(n for _, _, n in settings.stages())
+
+        def partial() -> CycleResult:
+            return CycleResult(settings, 0.0, tuple(incs), 0.0, tuple(states), {},
+                               {"preload": t_pre}, preload_state=pre.contact)  # fmt: skip
+
+        state, f_prev = pre, 0.0
+        t1 = time.perf_counter()
+        for stage, (f_from, f_to, n) in enumerate(settings.stages()):
+            # no point at F = 0 itself: the pin is unloaded there, held by friction alone,
+            # and the contact Newton stalls (the halvings toward it are kept)
+            targets = _with_zero(
+                stage_targets(f_from, f_to, n, settings.grading), f_from, preload_n,
+                at_zero=False,
+            )  # fmt: skip
+            for target in targets:
+                state = _advance(system, state, f_prev, float(target), contact, settings,
+                                 preload_n, len(incs), partial)  # fmt: skip
+                f_prev = float(target)
+                res = state.result
+                incs.append(
+                    Increment(
+                        stage=stage,
+                        force_n=f_prev,
+                        disp_mm=float(state.contact.alpha[GRIP]),
+                        side=1,
+                        iterations=0 if res is None else res.iterations,
+                        n_open=0 if res is None else res.n_open,
+                        n_stick=0 if res is None else res.n_stick,
+                        n_slip=0 if res is None else res.n_slip,
+                        friction_work=0.0 if res is None else float(np.sum(res.friction_work)),
+                        normal_work=0.0 if res is None else float(np.sum(res.normal_work)),
+                        elastic_energy=fit_energy(system, state),
+                    )
+                )
+                states.append(state.contact)
+                if progress is not None:
+                    progress(len(incs), total)
+    result = partial()
+    object.__setattr__(result, "timings_s", {"preload": t_pre, "cycle": time.perf_counter() - t1})
+    return result, pre, pre_work
+
+
+def _advance(
+    system: FitSystem,
+    state: FitState,
+    f_from: float,
+    f_to: float,
+    contact: ContactSettings,
+    settings: CycleSettings,
+    preload_n: float,
+    index: int,
+    partial: Callable[[], CycleResult],
+) -> FitState:
+    """Reach ``f_to`` from ``state``, halving the step on failure (works summed over sub-steps)."""
+    if f_to == 0.0 and preload_n == 0.0 and f_from == 0.0:
+        return state
+    ref = max(abs(f_to), abs(f_from), preload_n, settings.amplitude_n * 1e-3)
+    last: ConvergenceError | None = None
+    for level in range(settings.max_cutbacks + 1):
+        try:
+            s = state
+            fric = normal = 0.0
+            for j in range(1, 2**level + 1):
+                f = f_from + (f_to - f_from) * j / 2**level
+                s = solve_fit_increment(system, s, f, state.preload_mm, contact,
+                                        ref_load_n=ref, increment=index)  # fmt: skip
+                assert s.result is not None
+                fric += float(np.sum(s.result.friction_work))
+                normal += float(np.sum(s.result.normal_work))
+            if level and s.result is not None:
+                summed = dataclasses.replace(
+                    s.result, friction_work=np.array([fric]), normal_work=np.array([normal])
+                )
+                s = FitState(s.contact, s.v_mm, s.preload_mm, summed, s.ball_iterations)
+            return s
+        except ConvergenceError as err:
+            last = err
+            logger.warning("increment %d (F → %.4g N): cutting back: %s", index, f_to, err)
+    assert last is not None
+    raise ConvergenceError(
+        f"increment {index} (F {f_from:.4g} → {f_to:.4g} N) failed after "
+        f"{settings.max_cutbacks} cut-backs",
+        increment=index,
+        iteration=last.iteration,
+        residual=last.residual,
+        partial=partial(),
+    ) from last

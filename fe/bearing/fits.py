@@ -1,0 +1,265 @@
+"""The bearing hinge with frictional fits (``interfaces = "contact"``): the paper's ABAQUS model.
+
+Sec. IV.B of the paper puts *contacts*, not ties, on the outer race–tang, inner ring–shaft
+and shaft–lug interfaces. Here those six cylindrical fits (pin–clevis arm ×2, pin–inner
+ring ×2, tang bore–outer ring ×2) are Coulomb contacts at zero clearance, solved by
+``fe.contact`` exactly as the general hinge's pin in its holes; what stays tied is what
+holds the pair together axially: outer ring 0 on the tang's lip, outer ring 1 under the
+plate, and the two inner rings against each other (a face-to-face pair is clamped at its
+inner rings). The plate is held by its screws (its top face fixed).
+
+Bodies and their rigid modes (each carried as a ``G`` column, supported only to factorise):
+the pin floats (six modes, 3-2-1 supports, as the general hinge's pin); the inner-ring
+pair is held by its balls in every direction but its spin about the axis (balls roll),
+which only friction on the pin resists (one mode); the clevis moves with the grip.
+
+Balls: as in ``fe.bearing.system`` (Hertz along the line of the groove centres, free to
+roll), now in series with frictional contacts. The factorised stiffness carries a fixed
+reference ball stiffness ``H_ref`` (so the inner rings are not singular); each increment
+iterates on the true ball law (Newton: the ball tangent ``H`` enters the contact operator
+as a rank-40 update, ``W_eff = W_c − X (H − H_ref)(I + W_b (H − H_ref))⁻¹ Xᵀ``) around one
+frictional contact solve per iteration, from the same previous state, so the friction
+work is that of the converged iterate.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+import scipy.sparse as sp
+
+from cad.bearing_geometry import BearingHingeParams
+from cad.errors import MeshQualityError
+from cad.model import HingeModel, PairKind, SurfacePair
+from fe.assembly import Factorization, assemble_stiffness, dofs_of
+from fe.bearing.system import BallLines, ball_lines, patch_rows
+from fe.bearing.ties import Ties, tie_bonded_pairs
+from fe.element import ElementType
+from fe.hinge.geometry import ContactGeometry, contact_geometry, contact_operator
+from fe.hinge.system import BLOCK_RHS, rigid_modes
+from mesh.hexmesh import HexMesh
+
+logger = logging.getLogger(__name__)
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+FIT_PAIRS = {
+    "pin-clevis_1": ("pin_clevis_1", "clevis_hole_1"),
+    "pin-clevis_2": ("pin_clevis_2", "clevis_hole_2"),
+    "pin-inner_ring_0": ("pin_inner_ring_0", "inner_ring_0_bore"),
+    "pin-inner_ring_1": ("pin_inner_ring_1", "inner_ring_1_bore"),
+    # the tang's bore (coarse) is the slave of the ring's finer OD: 224 points, not 3 032
+    "outer_ring_0-tang": ("tang_bore_0", "outer_ring_0_od"),
+    "outer_ring_1-tang": ("tang_bore_1", "outer_ring_1_od"),
+}
+"""The fits that become frictional contacts: pair name → (slave face, master face)."""
+
+N_PIN = 6
+RING_SPIN = 6
+GRIP = 7
+N_RIGID = 8
+"""Rigid amplitudes: the pin's six modes, the inner rings' spin, the grip δ [mm]."""
+
+LOCKED_RATIO = 1e-9
+"""A contact point whose compliance is below this fraction of the median is locked."""
+
+REF_BALL_LOAD_N = 30.0
+"""Ball load at which the reference stiffness ``H_ref`` in the factorisation is taken."""
+
+
+def with_frictional_fits(model: HingeModel) -> HingeModel:
+    """The bearing hinge (without balls) with its six fits as contact pairs."""
+    pairs = [p for p in model.pairs if p.name not in FIT_PAIRS]
+    pairs += [SurfacePair(n, s, m, PairKind.CONTACT) for n, (s, m) in FIT_PAIRS.items()]
+    return dataclasses.replace(model, pairs=tuple(pairs))
+
+
+@dataclass
+class FitSystem:
+    """The bearing hinge with frictional fits, factorised and condensed.
+
+    Attributes:
+        mesh: The mesh (no balls).
+        params: Hinge parameters.
+        balls: The ball lines.
+        ties: The remaining bonded interfaces.
+        geo: The contact points of the six fits (m of them).
+        W_c: Contact compliance, shape (3m, 3m) [mm/N], node-major [n, t1, t2].
+        X: Contact–ball cross compliance, shape (3m, 2 n_b) [mm/N].
+        W_b: Ball compliance, shape (2 n_b, 2 n_b) [mm/N].
+        H_ref: Reference ball stiffness in the factorisation, shape (2 n_b, 2 n_b) [N/mm].
+        G: Contact rows of the rigid amplitudes, shape (3m, N_RIGID) [mm per unit α].
+        preload_shift: Ball coordinates per unit preload shift σ, shape (2 n_b,).
+        timings_s: Wall times [s].
+    """
+
+    mesh: HexMesh
+    params: BearingHingeParams
+    balls: BallLines
+    ties: Ties
+    geo: ContactGeometry
+    W_c: FloatArray
+    X: FloatArray
+    W_b: FloatArray
+    H_ref: FloatArray
+    G: FloatArray
+    preload_shift: FloatArray
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def n_balls(self) -> int:
+        """Balls of the pair."""
+        return len(self.balls.bearing)
+
+    @property
+    def n_points(self) -> int:
+        """Contact points of the fits."""
+        return len(self.geo.slave)
+
+
+def reference_stiffness(balls: BallLines, load_n: float = REF_BALL_LOAD_N) -> FloatArray:
+    """A fixed positive ball stiffness (Hertz tangent at ``load_n`` along each line)."""
+    from fe.bearing.cycle import _block_diag, ball_law
+
+    e = balls.d0 / np.linalg.norm(balls.d0, axis=1)[:, None]
+    approach = (load_n / balls.k_n) ** (2.0 / 3.0)
+    _, _, _, H = ball_law(balls.d0, e * approach, balls.k_n)
+    return _block_diag(H)
+
+
+def _once_per_node(geo: ContactGeometry) -> ContactGeometry:
+    """Keep one contact point per slave node.
+
+    A pin node on the line where two fits meet (z = 0, between the two inner rings, which
+    are tied there) would otherwise be two points with the same motion, and ``W`` two equal
+    rows: singular.
+    """
+    _, first = np.unique(geo.slave, return_index=True)
+    keep = np.sort(first)
+    return ContactGeometry(
+        *(np.asarray(getattr(geo, f.name))[keep] for f in dataclasses.fields(geo))
+    )
+
+
+def build_fit_system(
+    mesh: HexMesh, params: BearingHingeParams, kind: ElementType = ElementType.INCOMPATIBLE
+) -> FitSystem:
+    """Assemble, tie, factorise and condense the bearing hinge with frictional fits.
+
+    Raises:
+        MeshQualityError: If the mesh lacks a fit, a grip face, or a raceway patch.
+    """
+    for name in ("tang_fixed", "clevis_load", "plate_preload", *(s for s, _ in FIT_PAIRS.values())):
+        if name not in mesh.facet_sets:
+            raise MeshQualityError(f"the mesh has no facet set {name!r}")
+    t: dict[str, float] = {}
+    t0 = time.perf_counter()
+    K = assemble_stiffness(mesh, kind)
+    t["assembly"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    ties = tie_bonded_pairs(mesh)
+    T = ties.T
+    n_dof = 3 * mesh.n_nodes
+    balls = ball_lines(params)
+    B = patch_rows(mesh, balls)
+    Bt = (B @ T).tocsr()
+    H_ref = reference_stiffness(balls)
+    K0 = (T.T @ K @ T + Bt.T @ sp.csr_matrix(H_ref) @ Bt).tocsr()
+    pos = np.full(n_dof, -1, dtype=np.int64)
+    pos[ties.independent] = np.arange(len(ties.independent))
+    grip = mesh.set_nodes("clevis_load")
+    held_nodes = np.concatenate(
+        [mesh.set_nodes("tang_fixed"), grip, mesh.set_nodes("plate_preload")]
+    )
+    # the pin: 3-2-1 supports (as fe.hinge.system); the inner rings: one spin support
+    pin = mesh.part_nodes("pin")
+    x = np.asarray(mesh.nodes)
+    xp = x[pin]
+    lo, hi, r = xp[:, 2].min(), xp[:, 2].max(), float(np.hypot(xp[:, 0], xp[:, 1]).max())
+
+    def near(nodes: IntArray, p: tuple[float, float, float]) -> int:
+        return int(nodes[np.argmin(np.linalg.norm(x[nodes] - np.asarray(p), axis=1))])
+
+    a, b, c = near(pin, (0, 0, lo)), near(pin, (0, 0, hi)), near(pin, (r, 0, lo))
+    rings = np.concatenate([mesh.part_nodes("inner_ring_0"), mesh.part_nodes("inner_ring_1")])
+    free_rings = rings[pos[3 * rings] >= 0]
+    d = near(free_rings, (0.5 * params.bore_mm + 0.5, 0.0, 0.5 * params.width_mm))
+    support = np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * c + 1, 3 * d + 1])
+    held = pos[np.concatenate([dofs_of(held_nodes), support])]
+    if np.any(held < 0):
+        raise MeshQualityError("a fixed, grip or support DOF is tied: cannot hold it")
+    free = np.setdiff1d(np.arange(len(ties.independent)), held)
+    t["ties"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    factor = Factorization(K0[free][:, free])
+    t["factorisation"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    geo = _once_per_node(
+        contact_geometry(mesh, {n: np.zeros(3) for n in FIT_PAIRS}, max_overshoot=0.05)
+    )
+    C = (contact_operator(geo, n_dof) @ T).tocsr()
+    # rigid fields on all DOFs: pin modes, ring spin, grip (solved: the grip face moves)
+    fields = np.zeros((n_dof, N_RIGID))
+    fields[dofs_of(pin), :N_PIN] = rigid_modes(xp, xp.mean(axis=0))
+    spin = np.zeros((len(rings), 3))
+    spin[:, 0], spin[:, 1] = -x[rings, 1], x[rings, 0]
+    fields[dofs_of(rings), RING_SPIN] = spin.ravel()
+    u_ind = np.zeros(len(ties.independent))
+    u_ind[pos[3 * grip]] = 1.0
+    u_ind[free] = factor.solve(-(K0[free] @ u_ind))
+    fields[:, GRIP] = T @ u_ind
+    # fields on the independent DOFs (tied nodes follow their masters)
+    G = np.column_stack([C @ fields[ties.independent, j] for j in range(N_RIGID)])
+    Gb = np.column_stack([Bt @ fields[ties.independent, j] for j in range(N_RIGID)])
+    if np.abs(Gb).max() > 1e-9:
+        raise MeshQualityError("a rigid mode of the pin, ring spin or grip moves a ball patch")
+    # condensation: one block of right-hand sides at a time
+    rows = sp.vstack([C, Bt]).tocsr()[:, free]
+    n_c = C.shape[0]
+    WW = np.zeros((rows.shape[0], rows.shape[0]))
+    for start in range(0, rows.shape[0], BLOCK_RHS):
+        block = rows[start : start + BLOCK_RHS].T.toarray()
+        WW[:, start : start + BLOCK_RHS] = rows @ factor.solve(block).reshape(len(free), -1)
+    WW = 0.5 * (WW + WW.T)
+    # A tang node at the corner of bore and lip, facing ring 0's bottom edge (tied to the
+    # lip), moves with its master: a zero row of W. It cannot carry load; drop it.
+    d = np.diag(WW)[:n_c].reshape(-1, 3).sum(axis=1)
+    keep = np.flatnonzero(d > LOCKED_RATIO * np.median(d))
+    rows_kept = (3 * keep[:, None] + np.arange(3)).ravel()
+    sel = np.concatenate([rows_kept, n_c + np.arange(WW.shape[0] - n_c)])
+    WW = WW[np.ix_(sel, sel)]
+    G = G[rows_kept]
+    geo = ContactGeometry(
+        *(np.asarray(getattr(geo, f.name))[keep] for f in dataclasses.fields(geo))
+    )
+    n_c = 3 * len(keep)
+    t["condensation"] = time.perf_counter() - t0
+    shift = np.zeros(2 * len(balls.bearing))
+    shift[1::2] = np.where(balls.bearing == 1, 1.0, 0.0)  # outer ring 1 set down by σ
+    logger.info(
+        "bearing fits: %d DOF, %d contact points, factorised %.1f s, condensed %.1f s",
+        n_dof,
+        len(geo.slave),
+        t["factorisation"],
+        t["condensation"],
+    )
+    return FitSystem(
+        mesh,
+        params,
+        balls,
+        ties,
+        geo,
+        WW[:n_c, :n_c],
+        WW[:n_c, n_c:],
+        WW[n_c:, n_c:],
+        H_ref,
+        G,
+        shift,
+        t,
+    )
