@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from cad.errors import HingelabError, ParameterError
+from fe.bearing.fits import FitSystem
 from fe.bearing.system import BearingSystem, build_bearing_system
 from fe.hinge.condensed import Condensed
 from fe.hinge.cycle import run_cycle
@@ -67,7 +68,7 @@ class Prepared:
     key: str
     clearance_mm: float
     meshed: MeshedHinge
-    system: HingeSystem | BearingSystem
+    system: HingeSystem | BearingSystem | FitSystem
     configs: dict[float, dict[int, Condensed]] = field(default_factory=dict)
     effect_configs: dict[int, Condensed] | None = None
     setup_s: float = 0.0
@@ -108,9 +109,9 @@ def check_spec(spec: ModelSpec) -> None:
 
     Raises:
         ParameterError: For a bearing-hinge model choice whose cycle is not implemented
-            (``ball_model = "full"``, ``interfaces = "contact"``) or effects on it.
+            (``ball_model = "full"``) or effects on it.
     """
-    from cad.bearing import BallModel, BearingHingeParams, Interfaces
+    from cad.bearing import BallModel, BearingHingeParams
 
     if spec.kind != HingeKind.BEARING or not isinstance(spec.hinge, BearingHingeParams):
         return
@@ -119,11 +120,6 @@ def check_spec(spec: ModelSpec) -> None:
             f"ball_model must be 'hertz' for the bearing cycle (meshed balls are not in the "
             f"cycle yet: hingelab mesh --hinge bearing builds them), got "
             f"{spec.hinge.ball_model.value!r}"
-        )
-    if spec.hinge.interfaces is not Interfaces.BONDED:
-        raise ParameterError(
-            f"interfaces must be 'bonded' for the bearing cycle (frictional interfaces are "
-            f"not implemented yet), got {spec.hinge.interfaces.value!r}"
         )
     if spec.effects:
         raise ParameterError(
@@ -174,16 +170,23 @@ class ModelService:
         t0 = time.perf_counter()
         hinge = structure_of(spec, clearance_mm)
         out = None if self.geometry_dir is None else self.geometry_dir(clearance_mm)
-        system: HingeSystem | BearingSystem
+        system: HingeSystem | BearingSystem | FitSystem
         if isinstance(hinge, GeneralHingeParams):
             meshed = build_and_mesh(make_general_hinge(hinge), spec.mesh, out)
             system = build_system(meshed.mesh, cache_dir=self.cache_dir)
             clearance = system.clearance_mm
         else:
-            from cad.bearing import make_bearing_hinge, without_balls
+            from cad.bearing import Interfaces, make_bearing_hinge, without_balls
 
-            meshed = build_and_mesh(without_balls(make_bearing_hinge(hinge)), spec.mesh, out)
-            system = build_bearing_system(meshed.mesh, hinge)
+            model = without_balls(make_bearing_hinge(hinge))
+            if hinge.interfaces is Interfaces.CONTACT:
+                from fe.bearing.fits import build_fit_system, with_frictional_fits
+
+                meshed = build_and_mesh(with_frictional_fits(model), spec.mesh, out)
+                system = build_fit_system(meshed.mesh, hinge)
+            else:
+                meshed = build_and_mesh(model, spec.mesh, out)
+                system = build_bearing_system(meshed.mesh, hinge)
             clearance = 0.0
         prepared = Prepared(key, clearance, meshed, system)
         prepared.setup_s = time.perf_counter() - t0
@@ -235,6 +238,12 @@ class ModelService:
         settings = dataclasses.replace(spec.cycle, amplitude_n=point.amplitude_n)
         t0 = time.perf_counter()
         try:
+            if isinstance(prepared.system, FitSystem):
+                from fe.bearing.fit_cycle import run_fit_cycle
+
+                hinge = hinge_at(spec, point)
+                preload = float(getattr(hinge, "preload_n", 0.0))
+                return run_fit_cycle(prepared.system, settings, preload, progress=progress)[0]
             if isinstance(prepared.system, BearingSystem):
                 from fe.bearing.cycle import run_bearing_cycle
 

@@ -81,7 +81,6 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
         (["--hinge", "bearing", "--clearance", "0.1"], "--clearance: the bearing hinge has no"),
         (["--hinge", "bearing", "--preload", "600"], "--preload: preload_n must be in [0, 500]"),
         (["--hinge", "bearing", "--ball-model", "full"], "ball_model must be 'hertz'"),
-        (["--hinge", "bearing", "--interfaces", "contact"], "interfaces must be 'bonded'"),
         (["--ball-model", "hertz"], "--ball-model applies to the bearing hinge only"),
     ],
     ids=[
@@ -91,7 +90,6 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
         "clearance-on-bearing",
         "preload-too-large",
         "full-balls-not-yet",
-        "contact-interfaces-not-yet",
         "ball-model-on-general",
     ],
 )
