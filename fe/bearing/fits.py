@@ -118,6 +118,11 @@ class FitSystem:
         return len(self.balls.bearing)
 
     @property
+    def n_dof(self) -> int:
+        """DOFs of the whole mesh (before the ties eliminate the slave ones)."""
+        return 3 * self.mesh.n_nodes
+
+    @property
     def n_points(self) -> int:
         """Contact points of the fits."""
         return len(self.geo.slave)

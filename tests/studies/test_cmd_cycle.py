@@ -124,6 +124,19 @@ def test_bearing_cycle_writes_the_common_result_and_the_balls(tmp_path, capsys):
     assert "ball_load" in frame.point_data
 
 
+@pytest.mark.slow
+def test_bearing_cycle_with_frictional_fits_dissipates(tmp_path, capsys):
+    argv = ["cycle", "--hinge", "bearing", "--interfaces", "contact", "--preload", "100"]
+    argv += ["--size", "4", "--contact-size", "0.8", "--increments", "10", "--out", str(tmp_path)]
+    assert main([*argv, "--json", "--no-progress"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["interfaces"] == "contact"
+    assert out["n_contact_points"] > 100
+    assert out["eta"] > 1e-3  # the bonded hinge: |η| < 3e-5
+    assert out["energy_balance_rel_err"] < 0.05
+    assert (tmp_path / "loop.csv").is_file()
+
+
 MODEL = """[hinge]
 kind = "general"
 clearance_mm = 0.05
