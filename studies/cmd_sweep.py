@@ -1,4 +1,4 @@
-"""``hingelab sweep``: η over a clearance × amplitude grid, traced and resumable."""
+"""``hingelab sweep``: η over a clearance (or preload) × amplitude grid, traced and resumable."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from pathlib import Path
 
 from cad.errors import ParameterError
 from fe.hinge.protocol import DEFAULT_MU
+from mesh.settings import MeshSettings
 from studies.args import add_cluster_arguments, add_mesh_arguments, settings_from_args, with_option
 from studies.pipeline import dumps
 from studies.sweep import SweepSettings, run_sweep
@@ -23,13 +24,32 @@ def _floats(name: str, text: str) -> tuple[float, ...]:
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add the ``sweep`` subcommand."""
     p = sub.add_parser(
-        "sweep", help="run the cycle over a clearance × amplitude grid (resumable, Dask)"
+        "sweep",
+        help="run the cycle over a clearance (or preload) × amplitude grid (resumable, Dask)",
+    )
+    p.add_argument(
+        "--hinge",
+        choices=("general", "bearing"),
+        default="general",
+        help="general: clearance × amplitude; bearing: preload × amplitude (default general)",
     )
     p.add_argument(
         "--clearance",
-        default="0,0.1,0.2,0.3,0.4",
+        default=None,
         metavar="LIST",
-        help="clearances [mm] (default 0,0.1,0.2,0.3,0.4)",
+        help="clearances [mm] of the general hinge (default 0,0.1,0.2,0.3,0.4)",
+    )
+    p.add_argument(
+        "--preload",
+        default=None,
+        metavar="LIST",
+        help="axial preloads [N] of the bearing hinge (default 0,50,100,150,200)",
+    )
+    p.add_argument(
+        "--interfaces",
+        choices=("bonded", "contact"),
+        default="bonded",
+        help="bearing hinge: interfaces tied or frictional fits (default bonded)",
     )
     p.add_argument(
         "--amplitude",
@@ -54,26 +74,54 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     add_cluster_arguments(p)
     add_mesh_arguments(p)
     p.add_argument(
-        "--study", default="general_hinge", help="study name in the trace (default general_hinge)"
+        "--study",
+        default=None,
+        help="study name in the trace (default general_hinge or bearing_hinge)",
     )
     p.add_argument(
         "--out", type=Path, required=True, metavar="DIR", help="output folder (rerun to resume)"
     )
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=run, hinge="general")
+    p.set_defaults(func=run)
 
 
 def _settings(args: argparse.Namespace) -> SweepSettings:
+    bearing = args.hinge == "bearing"
+    if bearing and args.clearance is not None:
+        raise ParameterError(
+            f"--clearance: the bearing hinge has no clearance, got --clearance {args.clearance}; "
+            "sweep --preload instead"
+        )
+    if not bearing and args.preload is not None:
+        raise ParameterError(
+            f"--preload applies to --hinge bearing only, got --preload {args.preload}"
+        )
+    if not bearing and args.interfaces != "bonded":
+        raise ParameterError(
+            f"--interfaces applies to --hinge bearing only, got --interfaces {args.interfaces}"
+        )
+    mesh = settings_from_args(args)
+    if bearing:  # the hertz ball model meshes no balls
+        mesh = MeshSettings.for_hinge(
+            "bearing",
+            balls=False,
+            refinement=args.refinement,
+            **{k: v for k, v in (("size_mm", args.size), ("contact_size_mm", args.contact_size))
+               if v is not None},
+        )  # fmt: skip
     return SweepSettings(
-        clearances_mm=_floats("clearance", args.clearance),
+        clearances_mm=_floats("clearance", args.clearance or "0,0.1,0.2,0.3,0.4"),
         amplitudes_n=_floats("amplitude", args.amplitude),
         mu=args.mu,
         increments_per_stage=args.increments if args.increments is not None else 20,
         clearance_increments=args.increments if args.increments is not None else 60,
-        mesh=settings_from_args(args),
+        mesh=mesh,
         workers=args.workers,
-        study=args.study,
+        study=args.study or ("bearing_hinge" if bearing else "general_hinge"),
         scheduler=args.scheduler or None,
+        hinge=args.hinge,
+        preloads_n=_floats("preload", args.preload or "0,50,100,150,200"),
+        interfaces=args.interfaces,
     )
 
 
@@ -113,8 +161,9 @@ def run(args: argparse.Namespace) -> int:
             f"{outcome.failed} failed, {outcome.skipped} already done "
             f"({outcome.wall_s:.0f} s). Trace: {outcome.db}"
         )
+        x = "preload_N,amplitude_N" if args.hinge == "bearing" else "clearance_mm,amplitude_N"
         print(
-            f"next: hingelab rsm fit {outcome.table} --x clearance_mm,amplitude_N --y eta --degree 4 "
+            f"next: hingelab rsm fit {outcome.table} --x {x} --y eta --degree 4 "
             f"--trace {outcome.db}"
         )
     return 0 if outcome.failed == 0 else 1

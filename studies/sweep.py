@@ -51,10 +51,10 @@ logger = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class SweepSettings:
-    """A sweep over clearance × amplitude of the general hinge.
+    """A sweep over clearance × amplitude (general hinge) or preload × amplitude (bearing).
 
     Attributes:
-        clearances_mm: Radial clearances [mm].
+        clearances_mm: Radial clearances [mm] (general hinge).
         amplitudes_n: Force amplitudes [N].
         mu: Friction coefficient.
         increments_per_stage: Increments per half cycle at zero clearance.
@@ -68,6 +68,9 @@ class SweepSettings:
             general hinge with ``mu``, the increments and ``mesh`` above.
         scheduler: Address of an existing Dask scheduler (``tcp://host:8786``); None runs
             in this process or on a private LocalCluster (``workers``).
+        hinge: ``general`` or ``bearing`` (the default hinge of that kind, when no ``model``).
+        preloads_n: Axial preloads [N] of the bearing hinge's grid.
+        interfaces: The bearing hinge's interfaces, ``bonded`` or ``contact``.
     """
 
     clearances_mm: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4)
@@ -81,8 +84,15 @@ class SweepSettings:
     points_mm_n: tuple[tuple[float, float], ...] = ()
     model: Any = None
     scheduler: str | None = None
+    hinge: str = "general"
+    preloads_n: tuple[float, ...] = (0.0, 50.0, 100.0, 150.0, 200.0)
+    interfaces: str = "bonded"
 
     def __post_init__(self) -> None:
+        if self.hinge not in ("general", "bearing"):
+            raise ParameterError(f"hinge must be 'general' or 'bearing', got {self.hinge!r}")
+        if self.is_bearing and not self.preloads_n:
+            raise ParameterError("a bearing sweep needs at least one preload, got none")
         if not self.points_mm_n and (not self.clearances_mm or not self.amplitudes_n):
             raise ParameterError(
                 f"a sweep needs at least one clearance and one amplitude, got {self.clearances_mm} "
@@ -109,12 +119,37 @@ class SweepSettings:
             increments_per_stage=self.increments_per_stage,
             clearance_increments=self.clearance_increments,
         )
+        if self.hinge == "bearing":
+            from cad.bearing import BearingHingeParams, Interfaces
+
+            try:
+                interfaces = Interfaces(self.interfaces)
+            except ValueError as err:
+                allowed = [i.value for i in Interfaces]
+                raise ParameterError(
+                    f"interfaces must be one of {allowed}, got {self.interfaces!r}"
+                ) from err
+            return ModelSpec("bearing", BearingHingeParams(interfaces=interfaces), self.mesh, cycle)
         return ModelSpec("general", GeneralHingeParams(), self.mesh, cycle)
 
+    @property
+    def is_bearing(self) -> bool:
+        """True for a preload × amplitude sweep of the bearing hinge."""
+        if self.model is not None:
+            return bool(self.model.kind == "bearing")
+        return self.hinge == "bearing"
+
     def points(self) -> list[Any]:
-        """The distinct design points (the grid clearance-major, or ``points`` in order)."""
+        """The distinct design points (the grid clearance- or preload-major, or ``points``)."""
         from fe.service import DesignPoint, design_points
 
+        if self.is_bearing:
+            grid: dict[tuple[float | None, float], Any] = {}
+            for fp in self.preloads_n:
+                for a in self.amplitudes_n:
+                    p = DesignPoint(amplitude_n=a, preload_n=fp)
+                    grid.setdefault((p.preload_n, p.amplitude_n), p)
+            return list(grid.values())
         if not self.points_mm_n:
             return design_points(self.clearances_mm, self.amplitudes_n)
         seen: dict[tuple[float, float], Any] = {}
@@ -124,9 +159,11 @@ class SweepSettings:
         return list(seen.values())
 
 
-def point_key(clearance_mm: float, amplitude_n: float) -> str:
-    """Folder name of a point, e.g. ``c0.100_F300``."""
-    return f"c{clearance_mm:.3f}_F{amplitude_n:g}"
+def point_params(p: Any) -> dict[str, float]:
+    """The trace parameters of a design point (preload or clearance, and amplitude)."""
+    if p.preload_n is not None:
+        return {"preload_N": p.preload_n, "amplitude_N": p.amplitude_n}
+    return {"clearance_mm": p.clearance_mm, "amplitude_N": p.amplitude_n}
 
 
 def geometry_folder(out: Path) -> Callable[[float], Path]:
@@ -172,7 +209,7 @@ def point_record(
     spec = settings.spec()
 
     p = run.point
-    folder = out / "points" / point_key(p.clearance_mm, p.amplitude_n)
+    folder = out / "points" / p.label()
     folder.mkdir(parents=True, exist_ok=True)
     geo = out / "geometry" / f"c{p.clearance_mm:.3f}"
     artifacts: dict[str, Any] = {
@@ -185,7 +222,7 @@ def point_record(
     mesh_stats = mesh_stats_of(run.prepared) if run.prepared is not None else (mesh_stats or {})
     rec: dict[str, Any] = {
         "study": settings.study,
-        "params": {"clearance_mm": p.clearance_mm, "amplitude_N": p.amplitude_n},
+        "params": point_params(p),
         "solver": {
             "result_key": run.key,
             "mu": spec.cycle.mu,
@@ -201,10 +238,12 @@ def point_record(
     }
     if run.ok:
         result = run.result
-        title = (
-            f"general hinge, Δr = {p.clearance_mm:g} mm, Fg = {p.amplitude_n:g} N, "
-            f"μ = {spec.cycle.mu:g}"
+        what = (
+            f"bearing hinge ({spec.hinge.interfaces.value}), Fp = {p.preload_n:g} N"
+            if p.preload_n is not None
+            else f"general hinge, Δr = {p.clearance_mm:g} mm"
         )
+        title = f"{what}, Fg = {p.amplitude_n:g} N, μ = {spec.cycle.mu:g}"
         artifacts["loop_csv"] = write_loop_csv(result, folder / "loop.csv")
         artifacts["loop_png"] = write_loop_png(result, folder / "loop.png", title=title)
         # NaN (η of a loop without energy) becomes null: strict JSON, and no NaN in the table
