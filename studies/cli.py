@@ -29,6 +29,7 @@ SUBCOMMAND_MODULES = (
     "studies.cmd_calibrate",
     "studies.cmd_export_inp",
     "studies.cmd_repeatability",
+    "studies.cmd_paper",
     "studies.cmd_report",
 )
 

@@ -380,7 +380,12 @@ ZERO_REFINE = 8
 
 
 def _with_zero(
-    targets: FloatArray, f_from: float, preload_n: float, *, at_zero: bool = True
+    targets: FloatArray,
+    f_from: float,
+    preload_n: float,
+    *,
+    at_zero: bool = True,
+    halvings: int = ZERO_REFINE,
 ) -> FloatArray:
     """The targets with F = 0 added where the stage crosses it.
 
@@ -399,7 +404,7 @@ def _with_zero(
     if preload_n > 0:
         middle = np.array([0.0] if at_zero else [])
     else:
-        halves = 0.5 ** np.arange(1, ZERO_REFINE + 1)
+        halves = 0.5 ** np.arange(1, halvings + 1)
         zero = [0.0] if at_zero else []
         middle = np.concatenate([before * halves, zero, after * halves[::-1]])
     return np.concatenate([t[:j], middle, t[j:]])

@@ -1,0 +1,313 @@
+"""The paper's study with our own FE: both hinges, their response surfaces, beside the paper.
+
+``hingelab paper --out DIR [--quick]`` runs, as two sweeps (``studies.sweep``: traced,
+resumable, every point stored by its content key):
+
+* the general hinge, clearance 0–0.4 mm × Fg 100–500 N (5 × 5; ``--quick``: 3 × 3 on the
+  coarse mesh), and
+* the modified hinge, preload 0–200 N × Fg 100–500 N (5 × 5; ``--quick``: 3 × 3, coarse), with
+  the frictional fits of the paper's ABAQUS model (``--interfaces contact``, default) or tied
+  interfaces (``bonded``);
+
+fits each a response surface (degree 4 as the paper; degree 2 on a 3 × 3 grid, which cannot
+carry 15 terms) with the paper's metrics and Q², draws the surfaces, slices and η = 0.05
+maps (``rsm.plots``), and writes ``report.md`` and ``report.json`` with our η beside Tables 1
+and 4 point by point, the extremes of each hinge and the reduction the bearing brings,
+against the paper's printed 54.67 % / 32.57 % — each difference stated, nothing fitted.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from studies.pipeline import dumps, strict_json
+
+GRID = (100.0, 200.0, 300.0, 400.0, 500.0)
+CLEARANCES = (0.0, 0.1, 0.2, 0.3, 0.4)
+PRELOADS = (0.0, 50.0, 100.0, 150.0, 200.0)
+QUICK = {"amplitudes": (100.0, 300.0, 500.0), "clearances": (0.0, 0.2, 0.4),
+         "preloads": (0.0, 100.0, 200.0)}  # fmt: skip
+QUICK_BEARING_MESH: dict[str, Any] = {
+    "size_mm": 4.0,
+    "contact_size_mm": 0.8,
+    "part_sizes_mm": (("ring", 1.2),),
+}
+"""The bearing hinge's coarse mesh (40k nodes; the tests use it too)."""
+
+PRINTED_REDUCTION = {"min": 54.67, "max": 32.57}
+"""The paper's reductions of η_min and η_max from the general to the modified hinge [%]."""
+
+
+@dataclasses.dataclass(frozen=True)
+class PaperStudy:
+    """What ``hingelab paper`` runs.
+
+    Attributes:
+        quick: Coarse meshes and 3 × 3 grids.
+        interfaces: The modified hinge's interfaces, ``contact`` (the paper's) or ``bonded``.
+        mu: Friction coefficient of every frictional contact.
+        workers: Dask worker processes per sweep.
+        points: Restrict each hinge to its first ``points`` grid points (a smoke run), or 0.
+    """
+
+    quick: bool = False
+    interfaces: str = "contact"
+    mu: float = 0.2
+    workers: int = 1
+    points: int = 0
+
+    def sweeps(self) -> dict[str, Any]:
+        """The two sweeps' settings, by hinge (``general``, ``modified``)."""
+        from mesh.settings import MeshSettings
+        from studies.sweep import SweepSettings
+
+        amps: tuple[float, ...] = QUICK["amplitudes"] if self.quick else GRID
+        general_mesh = MeshSettings.coarse() if self.quick else MeshSettings()
+        bearing_mesh = MeshSettings.for_hinge("bearing", balls=False)
+        if self.quick:
+            bearing_mesh = dataclasses.replace(bearing_mesh, **QUICK_BEARING_MESH)
+        clearances: tuple[float, ...] = QUICK["clearances"] if self.quick else CLEARANCES
+        preloads: tuple[float, ...] = QUICK["preloads"] if self.quick else PRELOADS
+        if self.points:
+            amps, clearances, preloads = amps[: self.points], clearances[:1], preloads[:1]
+        return {
+            "general": SweepSettings(
+                clearances_mm=clearances, amplitudes_n=amps, mu=self.mu, mesh=general_mesh,
+                workers=self.workers, study="paper_general",
+            ),
+            "modified": SweepSettings(
+                hinge="bearing", preloads_n=preloads, amplitudes_n=amps, mu=self.mu,
+                mesh=bearing_mesh, workers=self.workers, study="paper_modified",
+                interfaces=self.interfaces,
+            ),
+        }  # fmt: skip
+
+
+def _read(table: Path, x_names: tuple[str, str]) -> tuple[np.ndarray, np.ndarray]:
+    with table.open() as fh:
+        rows = [r for r in csv.DictReader(fh) if r.get("eta") not in (None, "")]
+    x = np.array([[float(r[n]) for n in x_names] for r in rows])
+    return x, np.array([float(r["eta"]) for r in rows])
+
+
+def _paper_table(case: Any) -> dict[tuple[float, float], float]:
+    from rsm.paper_printed import paper_table_path
+
+    with paper_table_path(case.csv_name) as p, p.open() as fh:
+        rows = list(csv.DictReader(fh))
+    return {
+        (float(r[case.x_names[0]]), float(r[case.x_names[1]])): float(r["eta_fe"]) for r in rows
+    }
+
+
+def _hinge_report(
+    name: str, table: Path, x_names: tuple[str, str], case: Any, out: Path
+) -> dict[str, Any]:
+    """Fit, plot and compare one hinge."""
+    from rsm.metrics import fit_metrics
+    from rsm.plots import plot_all
+    from rsm.polynomial import fit_response_surface
+    from rsm.query import extrema, threshold_region
+
+    x, eta = _read(table, x_names)
+    paper = _paper_table(case)
+    rows = [
+        {
+            x_names[0]: float(a),
+            x_names[1]: float(b),
+            "eta_ours": float(e),
+            "eta_paper": paper.get((float(a), float(b)), math.nan),
+        }
+        for (a, b), e in zip(x, eta, strict=True)
+    ]
+    out_h: dict[str, Any] = {"points": rows, "n_points": len(rows)}
+    n_levels = min(len(np.unique(x[:, 0])), len(np.unique(x[:, 1])))
+    degree = 4 if n_levels >= 5 else 2 if n_levels >= 3 else 0
+    if degree == 0:
+        out_h["surface"] = None
+        out_h["eta_min"], out_h["eta_max"] = float(eta.min()), float(eta.max())
+        return out_h
+    surface = fit_response_surface(x, eta, degree, x_names=x_names, y_name="eta")
+    m = fit_metrics(surface, warn=False)
+    figures = plot_all(surface, m, out / "figures", threshold=0.05, prefix=f"{name}_")
+    ext = extrema(surface)
+    region = threshold_region(surface, 0.05, below=True)
+    out_h["surface"] = {
+        "degree": degree,
+        "max_abs_re_percent": m.max_abs_re_percent,
+        "r2": m.r2,
+        "r2_adj": m.r2_adj,
+        "rmse": m.rmse,
+        "q2": m.q2,
+        "overfit": list(m.overfit_reasons),
+        "figures": {k: str(v.relative_to(out)) for k, v in figures.items()},
+    }
+    out_h["eta_min"], out_h["eta_max"] = ext.minimum.value, ext.maximum.value
+    out_h["eta_min_at"], out_h["eta_max_at"] = ext.minimum.x.tolist(), ext.maximum.x.tolist()
+    out_h["below_0.05_fraction"] = region.area_fraction
+    out_h["below_0.05_range"] = {
+        x_names[i]: [float(region.lower[i]), float(region.upper[i])] for i in range(2)
+    }
+    return out_h
+
+
+def _copy_loop(sweep_out: Path, label: str, dest: Path) -> str | None:
+    src = sweep_out / "points" / label / "loop.png"
+    if not src.is_file():
+        return None
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(src, dest)
+    return str(dest.name)
+
+
+def run_paper(study: PaperStudy, out: Path) -> dict[str, Any]:
+    """Run both sweeps, fit, plot and compare; write ``report.json`` and ``report.md``."""
+    from rsm.paper_printed import GENERAL, MODIFIED
+    from studies.sweep import run_sweep
+
+    t0 = time.perf_counter()
+    out.mkdir(parents=True, exist_ok=True)
+    sweeps = study.sweeps()
+    outcomes = {name: run_sweep(s, out / name) for name, s in sweeps.items()}
+    report: dict[str, Any] = {
+        "study": dataclasses.asdict(study),
+        "sweeps": {n: _outcome(o, out) for n, o in outcomes.items()},
+    }
+    for name, xs, case in (
+        ("general", ("clearance_mm", "amplitude_N"), GENERAL),
+        ("modified", ("preload_N", "amplitude_N"), MODIFIED),
+    ):
+        table = outcomes[name].table
+        report[name] = _hinge_report(name, table, xs, case, out) if table.is_file() else None
+    loops = {
+        "general": _copy_loop(out / "general", _label(sweeps["general"], "general"),
+                              out / "figures" / "general_loop_400N.png"),
+        "modified": _copy_loop(out / "modified", _label(sweeps["modified"], "modified"),
+                               out / "figures" / "modified_loop_400N.png"),
+    }  # fmt: skip
+    report["loops"] = loops
+    g, mo = report.get("general"), report.get("modified")
+    if g and mo:
+        report["reduction_percent"] = {
+            k: 100.0 * (g[f"eta_{k}"] - mo[f"eta_{k}"]) / g[f"eta_{k}"]
+            if g[f"eta_{k}"] > 0
+            else math.nan
+            for k in ("min", "max")
+        }
+        report["reduction_percent_paper"] = PRINTED_REDUCTION
+    report["wall_s"] = time.perf_counter() - t0
+    (out / "report.json").write_text(dumps(strict_json(report)))
+    (out / "report.md").write_text(report_markdown(report))
+    return report
+
+
+def _outcome(o: Any, out: Path) -> dict[str, Any]:
+    return {
+        "ok": o.ok,
+        "failed": o.failed,
+        "cached": o.cached,
+        "skipped": o.skipped,
+        "wall_s": o.wall_s,
+        "table": str(o.table.relative_to(out)),
+    }
+
+
+def _label(settings: Any, name: str) -> str:
+    """The point closest to 400 N (and Δr 0.1 mm / F_p 0) of a sweep, as a folder label."""
+    pts = settings.points()
+    if name == "general":
+        best = min(pts, key=lambda p: (abs(p.amplitude_n - 400), abs(p.clearance_mm - 0.1)))
+    else:
+        best = min(pts, key=lambda p: (abs(p.amplitude_n - 400), abs(p.preload_n or 0.0)))
+    return str(best.label())
+
+
+def _fmt(v: Any, spec: str = ".4f") -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    return format(v, spec)
+
+
+def report_markdown(r: dict[str, Any]) -> str:
+    """The report a reader understands without the code."""
+    s = r["study"]
+    lines = [
+        "# The paper's study with hingelab's FE",
+        "",
+        f"Run: `hingelab paper{' --quick' if s['quick'] else ''} --interfaces {s['interfaces']}"
+        f" --mu {s['mu']:g}` ({r['wall_s']:.0f} s). The paper (ABAQUS) gives no dimensions and "
+        "no friction coefficient: its tables are a record to compare with, not a target, and "
+        "every difference below is reported as it is.",
+        "",
+        "| hinge | points ok | failed | table |",
+        "|---|---|---|---|",
+    ]
+    for n, o in r["sweeps"].items():
+        lines.append(
+            f"| {n} | {o['ok'] + o['cached'] + o['skipped']} | {o['failed']} | `{o['table']}` |"
+        )
+    for name, label, xs, table in (
+        ("general", "General hinge (Table 1)", ("clearance_mm", "amplitude_N"), "Table 1"),
+        ("modified", "Modified hinge (Table 4)", ("preload_N", "amplitude_N"), "Table 4"),
+    ):
+        h = r.get(name)
+        if not h:
+            continue
+        lines += ["", f"## {label}", "", f"| {xs[0]} | {xs[1]} | η ours | η {table} | ours / paper |",
+                  "|---|---|---|---|---|"]  # fmt: skip
+        for p in h["points"]:
+            ratio = p["eta_ours"] / p["eta_paper"] if p["eta_paper"] else math.nan
+            lines.append(
+                f"| {p[xs[0]]:g} | {p[xs[1]]:g} | {_fmt(p['eta_ours'])} | {_fmt(p['eta_paper'])} "
+                f"| {_fmt(ratio, '.2f')} |"
+            )
+        surf = h.get("surface")
+        if surf:
+            lines += [
+                "",
+                f"Response surface, degree {surf['degree']}: max |RE| {_fmt(surf['max_abs_re_percent'], '.2f')} %, "
+                f"R² {_fmt(surf['r2'])}, R²adj {_fmt(surf['r2_adj'])}, RMSE {_fmt(surf['rmse'], '.2e')}, "
+                f"Q² {_fmt(surf['q2'])}."
+                + (f" Over-fit warnings: {'; '.join(surf['overfit'])}." if surf["overfit"] else ""),
+                f"η on the surface: min {_fmt(h['eta_min'])} at {h['eta_min_at']}, max "
+                f"{_fmt(h['eta_max'])} at {h['eta_max_at']}; η < 0.05 on "
+                f"{100 * h['below_0.05_fraction']:.0f} % of the design box.",
+                "",
+                *[f"![{k}](figures/{Path(v).name})" for k, v in surf["figures"].items()],
+            ]
+    if "reduction_percent" in r:
+        red, paper = r["reduction_percent"], r["reduction_percent_paper"]
+        lines += [
+            "",
+            "## What the bearing brings",
+            "",
+            "| | ours | paper |",
+            "|---|---|---|",
+            f"| reduction of η_min | {_fmt(red['min'], '.1f')} % | {paper['min']} % |",
+            f"| reduction of η_max | {_fmt(red['max'], '.1f')} % | {paper['max']} % |",
+        ]
+    loops = r.get("loops", {})
+    lines += ["", "## Loops at 400 N", ""]
+    lines += [f"![{k} loop](figures/{v})" for k, v in loops.items() if v]
+    lines += [
+        "",
+        "## Why ours differs",
+        "",
+        "* Geometry: the paper gives no dimensions; ours are the defaults of `cad.general` and "
+        "`cad.bearing` (a 708C pair).",
+        "* Friction: the paper gives no μ; ours is the same μ on every contact.",
+        "* The modified hinge: with tied interfaces our model dissipates nothing (free-rolling "
+        "Hertz balls); with frictional fits it dissipates through the fits, and η rises with the "
+        "preload as in Table 4 (docs/bearing_model.md §5).",
+        "* The paper's own Table 1 fit puts its η = 0.05 boundary elsewhere than its text "
+        "(0.157 vs 0.2248 mm: `hingelab rsm paper`).",
+    ]
+    return "\n".join(lines) + "\n"
