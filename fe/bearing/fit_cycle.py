@@ -81,8 +81,13 @@ def solve_fit_increment(
     *,
     ref_load_n: float,
     increment: int = 0,
+    guess: tuple[FloatArray, FloatArray, FloatArray] | None = None,
 ) -> FitState:
     """Solve one increment from ``prev`` to the clevis force ``force_n`` at preload shift σ.
+
+    ``guess`` = (v, p, α) is where the iteration starts (e.g. extrapolated along the
+    branch); it changes the iteration count, never the solution or the works (those are
+    measured from ``prev``).
 
     Raises:
         ConvergenceError: If the contact solve or the ball iteration does not converge.
@@ -96,8 +101,11 @@ def solve_fit_increment(
     e[GRIP] = -force_n
     w0 = np.zeros((m, 3))
     w0[:, 0] = system.geo.g0
-    v = np.array(prev.v_mm, dtype=float)
-    start = (np.asarray(prev.contact.p), np.asarray(prev.contact.alpha))
+    if guess is None:
+        v = np.array(prev.v_mm, dtype=float)
+        start = (np.asarray(prev.contact.p), np.asarray(prev.contact.alpha))
+    else:
+        v, start = np.array(guess[0], dtype=float), (guess[1], guess[2])
     step = np.inf
     for it in range(1, MAX_BALL_ITER + 1):
         f, _, _, H = _ball(system, v, sigma, reg)
@@ -152,6 +160,10 @@ def fit_preload(
 ) -> tuple[FitState, float]:
     """The preload step: σ such that the plate force is F_p (F = 0); returns (state, friction work).
 
+    The pair is assembled frictionlessly (μ = 0 on the fits whatever ``contact`` says: the
+    fits' friction history starts once the hinge is assembled), so the state does not
+    depend on the path and each secant step starts from the last one's state.
+
     Raises:
         ParameterError: If ``preload_n`` is outside [0, 500] N.
         ConvergenceError: With increment 0 if σ or the state does not converge.
@@ -161,28 +173,29 @@ def fit_preload(
     s0 = unloaded(system)
     if preload_n == 0.0:
         return s0, 0.0
+    frictionless = dataclasses.replace(contact, mu=0.0)
     b1 = system.balls.bearing == 1
+    last = [s0]
 
-    def plate_force(sigma: float) -> tuple[float, FitState]:
-        st = solve_fit_increment(system, s0, 0.0, sigma, contact, ref_load_n=preload_n)
+    def plate_force(sigma: float) -> float:
+        st = solve_fit_increment(system, last[-1], 0.0, sigma, frictionless, ref_load_n=preload_n)
+        last.append(st)
         f = _ball(system, st.v_mm, sigma, 0.0)[0].reshape(-1, 2)
-        return float(f[b1, 1].sum()), st
+        return float(f[b1, 1].sum())
 
     # rigid-ring guess: both bearings compress by δ_a, σ ≈ 2 δ_a
     from fe.bearing.pair import axial_state_from_load, bearing_from_params
 
-    sig = [
-        2.0
-        * axial_state_from_load(bearing_from_params(system.params), preload_n).axial_deflection_mm
-    ]
+    jones = axial_state_from_load(bearing_from_params(system.params), preload_n)
+    sig = [2.0 * jones.axial_deflection_mm]
     sig.append(1.2 * sig[0])
-    vals = [plate_force(s)[0] - preload_n for s in sig]
+    vals = [plate_force(s) - preload_n for s in sig]
     for _ in range(30):
         if abs(vals[-1]) <= 1e-9 * preload_n:
             break
         new = sig[-1] - vals[-1] * (sig[-1] - sig[-2]) / (vals[-1] - vals[-2])
         sig.append(new)
-        vals.append(plate_force(new)[0] - preload_n)
+        vals.append(plate_force(new) - preload_n)
     else:
         raise ConvergenceError(
             f"the preload step (F_p = {preload_n:g} N) did not converge",
@@ -190,9 +203,7 @@ def fit_preload(
             iteration=30,
             residual=abs(vals[-1]),
         )
-    _, st = plate_force(sig[-1])
-    work = 0.0 if st.result is None else float(np.sum(st.result.friction_work))
-    return st, work
+    return last[-1], 0.0
 
 
 FIT_RIGID_RCOND = 1e-6
@@ -237,9 +248,7 @@ def run_fit_cycle(
     contact = fit_contact_settings(settings)
     t0 = time.perf_counter()
     with threadpool_limits(limits=settings.blas_threads, user_api="blas"):
-        # assembly: the rings are set into place frictionlessly (the fits' friction history
-        # starts once the hinge is assembled), so the preload step dissipates nothing
-        pre, pre_work = fit_preload(system, preload_n, dataclasses.replace(contact, mu=0.0))
+        pre, pre_work = fit_preload(system, preload_n, contact)  # frictionless assembly
         t_pre = time.perf_counter() - t0
         incs: list[Increment] = []
         states: list[ContactState] = []
@@ -259,10 +268,11 @@ def run_fit_cycle(
                 stage_targets(f_from, f_to, n, settings.grading), f_from, preload_n,
                 at_zero=False, halvings=FIT_HALVINGS,
             )  # fmt: skip
+            before: tuple[float, FitState] | None = None  # no extrapolation across a reversal
             for target in targets:
-                state = _advance(system, state, f_prev, float(target), contact, settings,
-                                 preload_n, len(incs), partial)  # fmt: skip
-                f_prev = float(target)
+                new = _advance(system, state, f_prev, float(target), contact, settings,
+                               preload_n, len(incs), partial, before)  # fmt: skip
+                before, state, f_prev = (f_prev, state), new, float(target)
                 res = state.result
                 incs.append(
                     Increment(
@@ -297,8 +307,13 @@ def _advance(
     preload_n: float,
     index: int,
     partial: Callable[[], CycleResult],
+    before: tuple[float, FitState] | None = None,
 ) -> FitState:
-    """Reach ``f_to`` from ``state``, halving the step on failure (works summed over sub-steps)."""
+    """Reach ``f_to`` from ``state``, halving the step on failure (works summed over sub-steps).
+
+    ``before``: the converged (force, state) preceding ``state`` on the same branch; the
+    first (sub-)step then starts from the linear extrapolation of the two.
+    """
     if f_to == 0.0 and preload_n == 0.0 and f_from == 0.0:
         return state
     ref = max(abs(f_to), abs(f_from), preload_n, settings.amplitude_n * 1e-3)
@@ -309,8 +324,18 @@ def _advance(
             fric = normal = 0.0
             for j in range(1, 2**level + 1):
                 f = f_from + (f_to - f_from) * j / 2**level
+                guess = None
+                if j == 1 and before is not None and before[0] != f_from:
+                    t = (f - f_from) / (f_from - before[0])
+                    b = before[1]
+                    guess = (
+                        s.v_mm + t * (s.v_mm - b.v_mm),
+                        np.asarray(s.contact.p) + t * (np.asarray(s.contact.p) - b.contact.p),
+                        np.asarray(s.contact.alpha)
+                        + t * (np.asarray(s.contact.alpha) - b.contact.alpha),
+                    )
                 s = solve_fit_increment(system, s, f, state.preload_mm, contact,
-                                        ref_load_n=ref, increment=index)  # fmt: skip
+                                        ref_load_n=ref, increment=index, guess=guess)  # fmt: skip
                 assert s.result is not None
                 fric += float(np.sum(s.result.friction_work))
                 normal += float(np.sum(s.result.normal_work))
