@@ -32,6 +32,7 @@ from cad.errors import ConvergenceError, ParameterError
 from fe.bearing.cycle import REG_FRACTION, _block_diag, _with_zero, ball_law
 from fe.bearing.fits import GRIP, N_RIGID, FitSystem
 from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
+from fe.contact.state import LinearSolver
 from fe.hinge.protocol import CycleSettings, stage_targets
 from fe.hinge.result import CycleResult, Increment
 
@@ -124,10 +125,9 @@ def solve_fit_increment(
         c = f - system.H_ref @ v - dH @ v
         W_eff = system.W_c - system.X @ N @ system.X.T
         w_free = w0 - (system.X @ (c - N @ (system.W_b @ c))).reshape(m, 3)
-        res = solve_increment(
-            0.5 * (W_eff + W_eff.T), w_free, state_prev, contact, G=G, e=e,
-            increment=increment, start=start,
-        )  # fmt: skip
+        res = _solve_contact(
+            0.5 * (W_eff + W_eff.T), w_free, state_prev, contact, G, e, increment, start
+        )
         p = np.ravel(res.state.p)
         v_new = np.linalg.solve(M, system.X.T @ p - system.W_b @ c)
         step = float(np.abs(v_new - v).max())
@@ -145,6 +145,38 @@ def solve_fit_increment(
         iteration=MAX_BALL_ITER,
         residual=step,
     )
+
+
+RESCUE_SETTINGS = ({"r_scale": 1.0}, {"r_scale": 10.0, "linear_solver": LinearSolver.LU})
+"""Other contact-solver settings tried, in order, when one fails. ``r_scale`` and the linear
+solver are algorithmic only (the converged solution does not depend on them); the first
+loaded increment without preload stalled on the coarse mesh at F_g = 500 N with the
+defaults of ``fit_contact_settings`` and converged with another augmentation."""
+
+
+def _solve_contact(
+    W: FloatArray,
+    w_free: FloatArray,
+    prev: ContactState,
+    contact: ContactSettings,
+    G: FloatArray,
+    e: FloatArray,
+    increment: int,
+    start: tuple[FloatArray, FloatArray],
+) -> IncrementResult:
+    """``solve_increment``, retried with ``RESCUE_SETTINGS`` before giving up."""
+    try:
+        return solve_increment(W, w_free, prev, contact, G=G, e=e, increment=increment, start=start)
+    except ConvergenceError as first:
+        for change in RESCUE_SETTINGS:
+            try:
+                alt = dataclasses.replace(contact, **change)
+                return solve_increment(
+                    W, w_free, prev, alt, G=G, e=e, increment=increment, start=start
+                )
+            except ConvergenceError:
+                continue
+        raise first
 
 
 def fit_energy(system: FitSystem, s: FitState) -> float:
