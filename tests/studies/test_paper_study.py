@@ -42,8 +42,10 @@ def test_paper_quick_fits_both_surfaces_and_draws_them(tmp_path, capsys):
         assert h["surface"]["degree"] == 2
         for fig in h["surface"]["figures"].values():
             assert (tmp_path / fig).read_bytes()[:4] == b"\x89PNG"
-        assert h["eta_max"] > h["eta_min"] > 0
+        assert h["eta_max"] > h["eta_min"]
+        assert h["eta_max_points"] > h["eta_min_points"] > 0  # every point dissipates
     assert set(report["reduction_percent"]) == {"min", "max"}
+    assert report["reduction_basis"] in ("surface extremes", "sampled points")
     assert report["loops"]["general"]
     assert report["loops"]["modified"]
     assert report["wall_s"] < 600
