@@ -36,19 +36,39 @@ def _strict(obj: Any) -> Any:
 
 
 def _check_cases(spec: ModelSpec, cases: Sequence[Case]) -> None:
-    if spec.kind != "general":
-        raise ParameterError(
-            f"compare supports hinge kind 'general' only for now, got {spec.kind!r}"
-        )
+    """Refuse cases the model cannot be run at, naming the case and the field."""
+    if spec.kind not in ("general", "bearing"):
+        raise ParameterError(f"compare supports kinds 'general' and 'bearing', got {spec.kind!r}")
     for c in cases:
-        if c.hinge != "general":
+        if c.hinge != spec.kind:
             raise DataError(
-                f"case {c.case_id!r}: hinge {c.hinge!r}; compare supports the general hinge only for now"
+                f"case {c.case_id!r}: hinge {c.hinge!r}, but the model is the {spec.kind} hinge"
             )
-        if c.preload_n != 0.0:
+        if spec.kind == "general" and c.preload_n != 0.0:
             raise DataError(
                 f"case {c.case_id!r}: preload_N = {c.preload_n:g}, but the general hinge has no preload"
             )
+        if spec.kind == "bearing" and c.clearance_mm != 0.0:
+            raise DataError(
+                f"case {c.case_id!r}: clearance_mm = {c.clearance_mm:g}, but the bearing hinge "
+                "has no clearance"
+            )
+
+
+def point_of(spec: ModelSpec, case: Case) -> Any:
+    """The design point of a case: (clearance, amplitude), or (preload, amplitude) for bearings."""
+    from fe.service import DesignPoint
+
+    if spec.kind == "bearing":
+        return DesignPoint(case.amplitude_n, preload_n=case.preload_n)
+    return DesignPoint(case.amplitude_n, case.clearance_mm)
+
+
+def run_key(point: Any) -> tuple[float, float]:
+    """Key of a model run: (clearance, amplitude), or (preload, amplitude) for bearings."""
+    if point.preload_n is not None:
+        return (point.preload_n, point.amplitude_n)
+    return (point.clearance_mm, point.amplitude_n)
 
 
 def run_model_for_cases(
@@ -58,45 +78,50 @@ def run_model_for_cases(
     with_free_play: bool = True,
     service: Any = None,
 ) -> tuple[dict[str, ModelResult], dict[tuple[float, float], Any]]:
-    """Run the model's cycle at every (clearance, amplitude) of the cases.
+    """Run the model's cycle at every (clearance or preload, amplitude) of the cases.
 
     Through the model service (``fe.service.ModelService``; a new one if None): one mesh,
-    one factorisation and one pair of condensed configurations per clearance, reused for
-    every amplitude there; replicates share one run. The model's effects (``spec.effects``,
-    e.g. written by ``hingelab calibrate``) are switched on.
+    one factorisation and one pair of condensed configurations per clearance (one for
+    every preload of the bearing hinge), reused for every amplitude there; replicates
+    share one run. The model's effects (``spec.effects``, e.g. written by
+    ``hingelab calibrate``) are switched on.
 
     Returns:
-        (case_id → ModelResult, (clearance, amplitude) → CycleResult).
+        (case_id → ModelResult, ``run_key`` → CycleResult).
     """
-    from fe.service import DesignPoint, ModelService
+    from fe.service import ModelService
 
     service = ModelService() if service is None else service
-    points = {c.case_id: DesignPoint(c.amplitude_n, c.clearance_mm) for c in cases}
+    points = {c.case_id: point_of(spec, c) for c in cases}
     runs: dict[tuple[float, float], Any] = {}
     for run in service.run(spec, points.values(), keep_going=False):
-        runs[(run.point.clearance_mm, run.point.amplitude_n)] = run.result
+        runs[run_key(run.point)] = run.result
     out = {}
     for c in cases:
         p = points[c.case_id]
-        r = runs[(p.clearance_mm, p.amplitude_n)]
+        r = runs[run_key(p)]
         # a stated η (an η-only table, like the paper's) excludes the free play, as
         # `hingelab cycle` reports it; a measured loop includes it (the grips see it)
         free_play = with_free_play and c.loop is not None
         F, d = r.machine_path() if free_play else r.loop_arrays()[:2]
-        source = f"model: Δr = {c.clearance_mm:g} mm, Fg = {c.amplitude_n:g} N"
+        where = (
+            f"F_p = {c.preload_n:g} N" if spec.kind == "bearing" else f"Δr = {c.clearance_mm:g} mm"
+        )
+        source = f"model: {where}, Fg = {c.amplitude_n:g} N"
         out[c.case_id] = ModelResult(Loop(F, d, None, source), r.metrics())
     return out, runs
 
 
 def _write_model_loops(
-    runs: dict[tuple[float, float], Any], out: Path, free_play: bool
+    runs: dict[tuple[float, float], Any], out: Path, free_play: bool, kind: str = "general"
 ) -> list[str]:
     folder = out / "model_loops"
     folder.mkdir(parents=True, exist_ok=True)
     files = []
-    for (clearance, amp), r in runs.items():
+    for (x, amp), r in runs.items():
         F, d = r.machine_path() if free_play else r.loop_arrays()[:2]
-        path = folder / f"clearance_{clearance:g}mm_F{amp:g}N.csv"
+        name = f"preload_{x:g}N" if kind == "bearing" else f"clearance_{x:g}mm"
+        path = folder / f"{name}_F{amp:g}N.csv"
         np.savetxt(
             path,
             np.column_stack([F, d]),
@@ -138,7 +163,7 @@ def compare_and_write(
     models, runs = run_model_for_cases(spec, data.cases, with_free_play=free_play)
     cmp = compare(models, data, settings)
     out.mkdir(parents=True, exist_ok=True)
-    files: dict[str, Any] = {"model_loops": _write_model_loops(runs, out, free_play)}
+    files: dict[str, Any] = {"model_loops": _write_model_loops(runs, out, free_play, spec.kind)}
     if plots:
         from validation.plots import write_comparison_plots
 

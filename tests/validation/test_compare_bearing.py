@@ -1,0 +1,79 @@
+"""``compare`` on bearing-hinge data: cases with a preload, a model file with kind = "bearing"."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from studies.cli import main
+
+MODEL_MESH = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2),)}
+DATA_MESH = {"size_mm": 3.5, "contact_size_mm": 0.7, "part_sizes_mm": (("ring", 1.0),)}
+"""The 'measurements' come from another, finer mesh than the model judged on them."""
+
+
+def _spec(mesh: dict, increments: int):  # type: ignore[no-untyped-def]
+    from cad.bearing import BearingHingeParams, Interfaces
+    from fe.hinge.protocol import CycleSettings
+    from mesh.settings import MeshSettings
+    from validation.model_file import ModelSpec
+
+    return ModelSpec(
+        "bearing",
+        BearingHingeParams(interfaces=Interfaces.CONTACT),
+        MeshSettings.for_hinge("bearing", balls=False, **mesh),
+        CycleSettings(mu=0.2, increments_per_stage=increments),
+    )
+
+
+def _cases_csv(path, rows):  # type: ignore[no-untyped-def]
+    head = "case_id,hinge,clearance_mm,preload_N,amplitude_N,loop_file"
+    path.write_text("\n".join([head, *rows]) + "\n")
+
+
+def test_bearing_cases_are_checked_against_the_model_kind(tmp_path):
+    from cad.errors import DataError
+    from validation.measurements import Case
+    from validation.workflow import _check_cases
+
+    spec = _spec(MODEL_MESH, 8)
+    with pytest.raises(DataError, match="hinge 'general', but the model is the bearing hinge"):
+        _check_cases(spec, [Case("a", "general", 0.0, 0.0, 300.0)])
+    with pytest.raises(DataError, match=r"clearance_mm = 0\.1, but the bearing hinge has no"):
+        _check_cases(spec, [Case("b", "bearing", 0.1, 100.0, 300.0)])
+    _check_cases(spec, [Case("c", "bearing", 0.0, 100.0, 300.0)])  # accepted
+
+
+@pytest.mark.slow
+def test_compare_passes_a_bearing_loop_from_another_mesh_and_fails_a_wrong_one(tmp_path, capsys):
+    from fe.service import DesignPoint, ModelService
+    from validation.model_file import write_model
+
+    data_spec = _spec(DATA_MESH, 16)
+    service = ModelService()
+    data = tmp_path / "data"
+    data.mkdir()
+    rng = np.random.default_rng(11)
+    rows = []
+    # the soft case is another design point (a replicate would only widen the scatter)
+    for cid, amp, scale in (("fp100_F300", 300.0, 1.0), ("fp100_F200_soft", 200.0, 1.3)):
+        r = service.run_point(data_spec, DesignPoint(amp, preload_n=100.0))
+        F, d = r.machine_path()
+        s = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(F)))])
+        t = np.linspace(0.0, s[-1], 900)  # another sampling than the model's increments
+        Fm = np.interp(t, s, F) + rng.normal(0.0, 0.002 * F.max(), t.size)
+        dm = scale * np.interp(t, s, d) + rng.normal(0.0, 0.002 * d.max(), t.size)
+        np.savetxt(data / f"{cid}.csv", np.column_stack([Fm, dm]), delimiter=",",
+                   header="force_N,displacement_mm", comments="")  # fmt: skip
+        rows.append(f"{cid},bearing,0,100,{amp:g},{cid}.csv")
+    _cases_csv(data / "cases.csv", rows)
+    model = write_model(_spec(MODEL_MESH, 8), tmp_path / "MODEL.toml")
+    assert "bearing" in model.read_text()
+    main(["compare", str(model), str(data), "--out", str(tmp_path / "out"), "--json"])
+    report = json.loads(capsys.readouterr().out)
+    cases = {c["case_id"]: c for c in report["cases"]}
+    assert cases["fp100_F300"]["passed"]
+    assert not cases["fp100_F200_soft"]["passed"]
+    assert (tmp_path / "out" / "model_loops" / "preload_100N_F300N.csv").is_file()
