@@ -183,6 +183,14 @@ def _model(doc: dict[str, Any], study: dict[str, Any], path: Path) -> Any:
 
     spec = _base_spec(study, path)
     check_spec(spec)
+    if spec.kind != "general":
+        raise _err(
+            path,
+            "study",
+            f"model: study files vary the general hinge's clearance × amplitude; got a "
+            f"{spec.kind!r} model (for the bearing hinge: hingelab sweep --hinge bearing "
+            "--preload LIST --amplitude LIST)",
+        )
     hinge = _override(spec.hinge, _table(doc, "hinge", path), path, "hinge", skip=("clearance_mm",))
     mesh_t = dict(_table(doc, "mesh", path))
     preset = mesh_t.pop("preset", None)

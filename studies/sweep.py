@@ -93,6 +93,11 @@ class SweepSettings:
             raise ParameterError(f"hinge must be 'general' or 'bearing', got {self.hinge!r}")
         if self.is_bearing and not self.preloads_n:
             raise ParameterError("a bearing sweep needs at least one preload, got none")
+        if self.is_bearing and self.points_mm_n:
+            raise ParameterError(
+                "points (clearance, amplitude) apply to the general hinge; a bearing sweep is "
+                "its preloads_n × amplitudes_n grid"
+            )
         if not self.points_mm_n and (not self.clearances_mm or not self.amplitudes_n):
             raise ParameterError(
                 f"a sweep needs at least one clearance and one amplitude, got {self.clearances_mm} "

@@ -177,3 +177,22 @@ def test_study_runs_fits_retries_failed(tmp_path, capsys, monkeypatch):
     slope = fit["coefficients"][1]["coefficient"]
     assert abs(slope) * 200.0 < 1e-6 * abs(fit["coefficients"][0]["coefficient"])
     assert (out / "study.toml").is_file()
+
+
+def test_a_bearing_model_in_a_study_file_is_refused_by_name(tmp_path):
+    """Study designs are clearance × amplitude: a bearing model must not silently run another grid."""
+    from cad.bearing import BearingHingeParams
+    from fe.service import ModelSpec
+    from validation.model_file import write_model
+
+    write_model(ModelSpec("bearing", BearingHingeParams()), tmp_path / "MODEL.toml")
+    text = ONE_CLEARANCE.replace('name = "fast"', 'name = "fast"\nmodel = "MODEL.toml"')
+    with pytest.raises(ParameterError, match=r"\[study\] model: .*'bearing' model.*sweep --hinge bearing"):
+        read_study(_write(tmp_path, text))
+
+
+def test_a_bearing_sweep_refuses_clearance_points():
+    from studies.sweep import SweepSettings
+
+    with pytest.raises(ParameterError, match=r"points .* apply to the general hinge"):
+        SweepSettings(hinge="bearing", points_mm_n=((0.0, 100.0),))
