@@ -268,11 +268,7 @@ def _bearing_summary(result: Any, system: Any, spec: Any) -> dict[str, Any]:
     pre = ball_state_of(system, result.preload_state)
     m = result.metrics()
     return {
-        "hinge": "bearing",
-        "preload_N": spec.hinge.preload_n,
-        "ball_model": spec.hinge.ball_model.value,
-        "interfaces": spec.hinge.interfaces.value,
-        "n_balls": system.n_balls,
+        **_bearing_common(system, spec),
         "ball_hertz_constant_N_per_mm1.5": system.balls.k_n,
         "preload_step": {
             "plate_travel_mm": float(pre.alpha[2]),
@@ -291,14 +287,21 @@ def _bearing_summary(result: Any, system: Any, spec: Any) -> dict[str, Any]:
     }
 
 
-def _fit_summary(result: Any, system: Any, spec: Any) -> dict[str, Any]:
-    """What the bearing hinge with frictional fits adds to the cycle's JSON."""
+def _bearing_common(system: Any, spec: Any) -> dict[str, Any]:
+    """The model choices every bearing-hinge cycle JSON starts with."""
     return {
         "hinge": "bearing",
         "preload_N": spec.hinge.preload_n,
         "ball_model": spec.hinge.ball_model.value,
         "interfaces": spec.hinge.interfaces.value,
         "n_balls": system.n_balls,
+    }
+
+
+def _fit_summary(result: Any, system: Any, spec: Any) -> dict[str, Any]:
+    """What the bearing hinge with frictional fits adds to the cycle's JSON."""
+    return {
+        **_bearing_common(system, spec),
         "n_contact_points": system.n_points,
         "preload_step": {
             "dissipation_Nmm": 0.0,

@@ -37,7 +37,7 @@ from cad.bearing_geometry import BearingHingeParams
 from cad.errors import MeshQualityError
 from cad.model import HingeModel, PairKind, SurfacePair
 from fe.assembly import Factorization, assemble_stiffness, dofs_of
-from fe.bearing.system import BallLines, ball_lines, patch_rows
+from fe.bearing.system import BallCounts, BallLines, ball_lines, patch_rows
 from fe.bearing.ties import Ties, tie_bonded_pairs
 from fe.element import ElementType
 from fe.hinge.geometry import ContactGeometry, contact_geometry, contact_operator
@@ -81,7 +81,7 @@ def with_frictional_fits(model: HingeModel) -> HingeModel:
 
 
 @dataclass
-class FitSystem:
+class FitSystem(BallCounts):
     """The bearing hinge with frictional fits, factorised and condensed.
 
     Attributes:
@@ -111,16 +111,6 @@ class FitSystem:
     G: FloatArray
     preload_shift: FloatArray
     timings_s: dict[str, float] = field(default_factory=dict)
-
-    @property
-    def n_balls(self) -> int:
-        """Balls of the pair."""
-        return len(self.balls.bearing)
-
-    @property
-    def n_dof(self) -> int:
-        """DOFs of the whole mesh (before the ties eliminate the slave ones)."""
-        return 3 * self.mesh.n_nodes
 
     @property
     def n_points(self) -> int:

@@ -116,8 +116,25 @@ def ball_lines(p: BearingHingeParams) -> BallLines:
     )
 
 
+class BallCounts:
+    """Sizes shared by the bearing hinge's condensed systems (``mesh`` and ``balls`` given)."""
+
+    mesh: HexMesh
+    balls: BallLines
+
+    @property
+    def n_dof(self) -> int:
+        """DOFs of the whole mesh (before the ties eliminate the slave ones)."""
+        return 3 * self.mesh.n_nodes
+
+    @property
+    def n_balls(self) -> int:
+        """Balls of the pair."""
+        return len(self.balls.bearing)
+
+
 @dataclass
-class BearingSystem:
+class BearingSystem(BallCounts):
     """The tied bearing-hinge structure, factorised and condensed on its balls.
 
     Attributes:
@@ -148,16 +165,6 @@ class BearingSystem:
     G: FloatArray
     fields: FloatArray
     timings_s: dict[str, float] = field(default_factory=dict)
-
-    @property
-    def n_dof(self) -> int:
-        """DOFs of the whole mesh (before the ties eliminate the slave ones)."""
-        return 3 * self.mesh.n_nodes
-
-    @property
-    def n_balls(self) -> int:
-        """Balls of the pair."""
-        return len(self.balls.bearing)
 
     def displacement(self, f: FloatArray, alpha: FloatArray) -> FloatArray:
         """Displacement fields under ball forces and load parameters, shape (n_dof, k) [mm].
