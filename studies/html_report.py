@@ -26,6 +26,7 @@ from importlib import metadata
 from pathlib import Path
 
 from cad.errors import DataError
+from studies.html_paper import paper_study_report
 from studies.html_parts import CSS, Html, esc, join, kv_table, tag
 from studies.html_sections import ReportBody, cycle_report, sweep_report
 from studies.html_validation import (
@@ -41,6 +42,7 @@ class ReportKind(Enum):
 
     CYCLE = "cycle"
     SWEEP = "sweep"
+    PAPER_STUDY = "paper study"
     PAPER_VALIDATION = "paper validation"
     RSM_PAPER = "rsm paper"
     CALIBRATE = "calibrate"
@@ -50,6 +52,7 @@ class ReportKind(Enum):
 SIGNATURES: dict[ReportKind, tuple[str, ...]] = {
     ReportKind.CYCLE: ("result.json", "loop.csv"),
     ReportKind.SWEEP: ("trace.sqlite",),
+    ReportKind.PAPER_STUDY: ("report.json", "modified", "general"),
     ReportKind.PAPER_VALIDATION: ("report.json", "compare_table1"),
     ReportKind.RSM_PAPER: ("paper_comparison.json",),
     ReportKind.CALIBRATE: ("ledger.json",),
@@ -60,6 +63,7 @@ SIGNATURES: dict[ReportKind, tuple[str, ...]] = {
 _BUILDERS: dict[ReportKind, Callable[[Path, Path], ReportBody]] = {
     ReportKind.CYCLE: cycle_report,
     ReportKind.SWEEP: sweep_report,
+    ReportKind.PAPER_STUDY: paper_study_report,
     ReportKind.PAPER_VALIDATION: paper_validation_report,
     ReportKind.RSM_PAPER: rsm_paper_report,
     ReportKind.CALIBRATE: calibrate_report,

@@ -29,6 +29,15 @@ def test_paper_smoke_one_point_per_hinge(tmp_path, capsys):
     assert main([*argv, "--json"]) == 0
     again = json.loads(capsys.readouterr().out)
     assert again["sweeps"]["general"]["skipped"] == 1
+    # and the folder has its HTML report (structure checked as for every report kind)
+    from tests.studies.test_cmd_report import check_structure
+
+    assert main(["report", str(tmp_path), "--out", str(tmp_path / "report.html")]) == 0
+    page = check_structure(tmp_path / "report.html")
+    text = " ".join(page.text)
+    for needle in ("paper study", "General hinge beside Table 1", "Modified hinge beside Table 4"):
+        assert needle in text
+    assert "0.0656" in text  # Table 1 at Δr 0, 100 N, beside ours
 
 
 @pytest.mark.slow
