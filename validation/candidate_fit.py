@@ -67,10 +67,13 @@ class MeasuredFeatures:
     ``(η_model − η)/σ_η`` with ``η_model = W/(π Fg δ_max)`` from the model's features.
 
     Attributes:
-        points: (clearance [mm], amplitude [N]) per row.
+        points: (clearance [mm] — the preload [N] for bearing-hinge data —, amplitude [N])
+            per row.
         values: Features, shape (n_points, 3) (η-only rows: [NaN, η, NaN]).
         sigma: Their σ, shape (n_points, 3).
         eta_only: Rows measured by η only, shape (n_points,).
+        clearance_mm: Radial clearance of each row [mm] (0 for the bearing hinge, whose
+            ``points`` hold the preload); None: the first entry of ``points``.
         max_rel_sigma: Features with σ > max_rel_sigma·|value| are uninformative
             (``FeatureSettings.max_rel_sigma``); inf keeps every finite feature.
     """
@@ -80,6 +83,7 @@ class MeasuredFeatures:
     sigma: FloatArray
     eta_only: npt.NDArray[np.bool_] | None = None
     max_rel_sigma: float = math.inf
+    clearance_mm: tuple[float, ...] | None = None
 
     @property
     def informative(self) -> npt.NDArray[np.bool_]:
@@ -119,9 +123,9 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
     ``eta_rel_sigma · η`` (the stated uncertainty: tables carry none) and the model floor
     ``rel_floor · η + eta_floor``.
     """
-    points, values, sigmas, eta_only = [], [], [], []
+    points, values, sigmas, eta_only, clearances = [], [], [], [], []
     by_id = data.by_id()
-    for (_, clearance, _, amp), ids in data.replicate_groups().items():
+    for (hinge, clearance, preload, amp), ids in data.replicate_groups().items():
         loops = []
         etas = []
         for cid in ids:
@@ -132,7 +136,9 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
                 )
             elif case.eta is not None:
                 etas.append(float(case.eta))
-        points.append((clearance, amp))
+        # the design variable next to the amplitude: the bearing hinge's is its preload
+        points.append((preload if hinge == "bearing" else clearance, amp))
+        clearances.append(clearance)
         if loops:
             feats = np.array([loop_features(p) for p in loops])
             rep = np.std(feats, axis=0, ddof=1) if len(loops) > 1 else None
@@ -158,6 +164,7 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
         np.array(sigmas),
         np.array(eta_only, dtype=bool),
         settings.max_rel_sigma,
+        tuple(clearances),
     )
 
 
@@ -169,7 +176,8 @@ def _eta_without_free_play(model: FloatArray, meas: MeasuredFeatures) -> FloatAr
     with or without the zero-force traverse.
     """
     elastic = np.array(model, dtype=np.float64, copy=True)
-    elastic[:, 0] -= 2.0 * np.array([p[0] for p in meas.points])
+    clearance = meas.clearance_mm or tuple(p[0] for p in meas.points)
+    elastic[:, 0] -= 2.0 * np.array(clearance)
     return derived(elastic, meas.amplitudes)[1]
 
 

@@ -468,7 +468,11 @@ def diagnose(
     for name in REGISTRY:
         if name in spec.effects:
             skipped[name] = "already in the model"
-        elif REGISTRY[name].zero_clearance_reason and any(p[0] > 0 for p in meas.points):
+        elif (
+            spec.kind == "general"
+            and REGISTRY[name].zero_clearance_reason
+            and any(p[0] > 0 for p in meas.points)
+        ):
             why = REGISTRY[name].zero_clearance_reason
             skipped[name] = f"needs Δr = 0 at every case ({why})"
         else:

@@ -47,7 +47,8 @@ class ModelEvaluator:
 
     Args:
         spec: The model (its own effects are always on; extra effects add to them).
-        points: Design points (clearance [mm], amplitude [N]), in row order.
+        points: Design points (clearance [mm], amplitude [N]), in row order; for the bearing
+            hinge (preload [N], amplitude [N]).
         increments_per_stage: Increments per load stage of the diagnosis runs (None:
             the model file's).
         clearance_increments: Increments across the free play (None: the model file's).
@@ -95,7 +96,7 @@ class ModelEvaluator:
             from fe.service import DesignPoint
             from validation.synth import machine_path
 
-            clearance, amp = point
+            x, amp = point
             spec = dataclasses.replace(
                 self.spec,
                 cycle=dataclasses.replace(self.cycle, amplitude_n=amp, mu=mu),
@@ -104,7 +105,12 @@ class ModelEvaluator:
             t0 = time.perf_counter()
             setup0 = self.service.setup_s
             try:
-                res = self.service.run_point(spec, DesignPoint(amp, clearance))
+                design = (
+                    DesignPoint(amp, preload_n=x)
+                    if self.spec.kind == "bearing"
+                    else DesignPoint(amp, x)
+                )
+                res = self.service.run_point(spec, design)
                 # the free play crossed at zero force, as the grips see it (no chord area)
                 self._loops[key] = machine_path(res)
             except HingelabError as err:  # a refused or non-converged effect value

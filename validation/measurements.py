@@ -269,7 +269,7 @@ def _case_from_row(table: _Table, i: int, cell: dict[str, str], root: Path) -> C
     )
 
 
-def read_eta_table(path: Path | str, *, hinge: str = "general") -> MeasurementSet:
+def read_eta_table(path: Path | str, *, hinge: str | None = None) -> MeasurementSet:
     """Read an η-only table (``clearance_mm, preload_N, amplitude_N, eta``), like the paper's Table 1.
 
     ``clearance_mm`` or ``preload_N`` may be absent (the paper's general-hinge table has
@@ -279,13 +279,17 @@ def read_eta_table(path: Path | str, *, hinge: str = "general") -> MeasurementSe
 
     Args:
         path: The table.
-        hinge: Hinge kind of every row.
+        hinge: Hinge kind of every row; None: ``bearing`` for a table with a ``preload_N``
+            column and no ``clearance_mm`` (the paper's Table 4), else ``general``.
 
     Raises:
         DataError: Missing ``amplitude_N``/``eta`` or both design columns, a non-numeric
             or non-finite value, η outside (0, 1], a negative design value.
     """
     table = _read_table(Path(path))
+    if hinge is None:
+        only_preload = "preload_N" in table.header and "clearance_mm" not in table.header
+        hinge = "bearing" if only_preload else "general"
     if hinge not in HINGE_KINDS:
         raise DataError(f"{table.path}: hinge must be one of {HINGE_KINDS}, got {hinge!r}")
     missing = [c for c in ("amplitude_N", "eta") if c not in table.header]
