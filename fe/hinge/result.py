@@ -131,7 +131,11 @@ class CycleResult:
         return slice(first, len(stage))
 
     def loop_work(self, loop: slice | None = None) -> float:
-        """Loop area ∮F dδ of the last (or a given) loop [N·mm], trapezoidal."""
+        """Loop area ∮F dδ of the last (or a given) loop [N·mm].
+
+        Trapezoidal, with the cubic Hermite correction on increments whose ends both carry
+        a tangent stiffness (``Increment.stiffness_n_per_mm``).
+        """
         F, d, _ = self.loop_arrays()
         k = np.array([math.nan] + [i.stiffness_n_per_mm for i in self.increments])
         sl = loop or self.last_loop()

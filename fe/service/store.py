@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import os
 import tempfile
 from pathlib import Path
@@ -24,7 +25,10 @@ from fe.contact import ContactState
 from fe.hinge.protocol import CycleSettings
 from fe.hinge.result import CycleResult, Increment
 
+logger = logging.getLogger(__name__)
+
 FORMAT_VERSION = 2
+"""2: increments carry their tangent stiffness (1: without; read as a miss)."""
 
 _INC_FIELDS = tuple(f.name for f in dataclasses.fields(Increment))
 
@@ -106,10 +110,14 @@ class ResultStore:
                     preload = ContactState(z["pre_p"], z["pre_w"], z["pre_status"], z["pre_alpha"])
         except (OSError, ValueError, KeyError) as err:
             raise DataError(f"{path}: not a readable hingelab result ({err})") from err
-        if meta.get("format") != FORMAT_VERSION or meta.get("key") != key:
-            raise DataError(
-                f"{path}: stored format/key does not match (delete the file to recompute)"
-            )
+        if meta.get("key") != key:
+            raise DataError(f"{path}: stored key does not match (delete the file to recompute)")
+        if meta.get("format") != FORMAT_VERSION:
+            # an older layout (v1 had no tangent stiffness per increment): not an error,
+            # the point is recomputed and the file replaced
+            logger.info("%s: stored format %s, now %d: recomputing", path, meta.get("format"),
+                        FORMAT_VERSION)  # fmt: skip
+            return None
         ints = {"stage", "side", "iterations", "n_open", "n_stick", "n_slip"}
         increments = tuple(
             Increment(

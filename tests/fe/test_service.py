@@ -134,3 +134,17 @@ def test_bearing_point_and_spec_mistakes_are_named():
     full = dataclasses.replace(spec, hinge=BearingHingeParams(ball_model=BallModel.FULL))
     with pytest.raises(ParameterError, match="ball_model must be 'hertz'"):
         ModelService().run(full, [DesignPoint(200.0)])
+
+
+def test_a_result_of_an_older_store_format_is_recomputed_not_an_error(tmp_path):
+    """A sweep interrupted before an upgrade resumes: the old file is a miss, not a DataError."""
+    import json as _json
+
+    store = ResultStore(tmp_path)
+    key = "a" * 64
+    store.root.mkdir(parents=True, exist_ok=True)
+    np.savez(store.path(key), meta=np.array(_json.dumps({"format": 1, "key": key})))
+    assert store.get(key) is None
+    np.savez(store.path(key), meta=np.array(_json.dumps({"format": 2, "key": "b" * 64})))
+    with pytest.raises(Exception, match="stored key does not match"):
+        store.get(key)
