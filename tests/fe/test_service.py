@@ -143,8 +143,10 @@ def test_a_result_of_an_older_store_format_is_recomputed_not_an_error(tmp_path):
     store = ResultStore(tmp_path)
     key = "a" * 64
     store.root.mkdir(parents=True, exist_ok=True)
-    np.savez(store.path(key), meta=np.array(_json.dumps({"format": 1, "key": key})))
+    v1 = np.zeros((3, 11))  # format 1: eleven increment columns (no tangent stiffness)
+    np.savez(store.path(key), meta=np.array(_json.dumps({"format": 1, "key": key})), increments=v1)
     assert store.get(key) is None
-    np.savez(store.path(key), meta=np.array(_json.dumps({"format": 2, "key": "b" * 64})))
+    other = np.array(_json.dumps({"format": 2, "key": "b" * 64}))
+    np.savez(store.path(key), meta=other, increments=np.zeros((3, 12)))
     with pytest.raises(Exception, match="stored key does not match"):
         store.get(key)
