@@ -161,7 +161,7 @@ def test_table_printed_from_the_written_files(dataset, capsys):
         (
             '[hinge]\nkind = "general"\n',
             "c1,bearing,0,0,200,c1.csv",
-            "hinge 'bearing'; compare supports the general hinge only",
+            "hinge 'bearing', but the model is the general hinge",
         ),
         (
             '[hinge]\nkind = "general"\n',
