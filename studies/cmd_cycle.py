@@ -300,7 +300,10 @@ def _bearing_common(system: Any, spec: Any) -> dict[str, Any]:
 
 def _fit_summary(result: Any, system: Any, spec: Any) -> dict[str, Any]:
     """What the bearing hinge with frictional fits adds to the cycle's JSON."""
+    from fe.bearing.report import fit_ball_table
+
     return {
+        "balls": fit_ball_table(system, result),
         **_bearing_common(system, spec),
         "n_contact_points": system.n_points,
         "preload_step": {

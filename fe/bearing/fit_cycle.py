@@ -308,11 +308,13 @@ def run_fit_cycle(
         t_pre = time.perf_counter() - t0
         incs: list[Increment] = []
         states: list[ContactState] = []
+        balls = [np.append(pre.v_mm, pre.preload_mm)]  # after the preload, then per increment
         total = sum(n for _, _, n in settings.stages())
 
         def partial() -> CycleResult:
             return CycleResult(settings, 0.0, tuple(incs), 0.0, tuple(states), {},
-                               {"preload": t_pre}, preload_state=pre.contact)  # fmt: skip
+                               {"preload": t_pre}, preload_state=pre.contact,
+                               ball_coordinates=np.array(balls))  # fmt: skip
 
         state, f_prev = pre, 0.0
         t1 = time.perf_counter()
@@ -346,6 +348,7 @@ def run_fit_cycle(
                     )
                 )
                 states.append(state.contact)
+                balls.append(np.append(state.v_mm, state.preload_mm))
                 if progress is not None:
                     progress(len(incs), total)
     result = partial()

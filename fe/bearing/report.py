@@ -49,6 +49,39 @@ def ball_table(system: BearingSystem, result: CycleResult) -> dict[str, Any]:
     return out
 
 
+def fit_ball_table(system: Any, result: CycleResult) -> dict[str, Any]:
+    """As ``ball_table`` for the frictional-fit hinge (``fe.bearing.fits.FitSystem``).
+
+    Its balls are read from ``result.ball_coordinates`` (row 0: after the preload).
+    """
+    if result.ball_coordinates is None:
+        return {}
+    sl = result.last_loop()
+    F, _, _ = result.loop_arrays()
+    # loop-array index i is increment i − 1, i.e. ball_coordinates row i
+    rows = {"preload": 0, "plus_Fg": sl.stop - 1, "minus_Fg": sl.start + int(np.argmin(F[sl]))}
+    balls = system.balls
+    out: dict[str, Any] = {}
+    for key, i in rows.items():
+        c = np.asarray(result.ball_coordinates[i])
+        v = c[:-1] + c[-1] * system.preload_shift
+        d = balls.d0 + v.reshape(-1, 2)
+        _, Q, _, _ = ball_law(balls.d0, v.reshape(-1, 2), balls.k_n)
+        angle = np.degrees(np.arctan2(np.abs(d[:, 1]), d[:, 0]))
+        out[key] = [
+            {
+                "bearing": int(balls.bearing[j]),
+                "ball": int(balls.index[j]),
+                "azimuth_deg": float(np.degrees(balls.theta[j])),
+                "inner_load_N": float(Q[j]),
+                "outer_load_N": float(Q[j]),
+                "contact_angle_deg": float(angle[j]),
+            }
+            for j in range(len(Q))
+        ]
+    return out
+
+
 def increment_fields(system: BearingSystem, result: CycleResult, chosen: list[int]) -> FloatArray:
     """Displacement fields of chosen increments, shape (k, n_nodes, 3) [mm]."""
     f = np.zeros((2 * system.n_balls, len(chosen)))

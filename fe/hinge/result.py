@@ -75,6 +75,10 @@ class CycleResult:
         timings_s: Wall time per phase [s].
         preload_state: The bearing hinge's state after its preload step, one point per
             ball (``fe.bearing.cycle``); None for the general hinge.
+        ball_coordinates: The frictional-fit bearing hinge's balls (``fe.bearing.fit_cycle``):
+            per ball (radial, axial) groove-centre coordinates, then the preload shift σ,
+            after the preload (row 0) and after every increment, shape
+            (n_increments + 1, 2 n_b + 1) [mm]; None otherwise.
     """
 
     settings: CycleSettings
@@ -85,6 +89,7 @@ class CycleResult:
     configs: dict[int, Condensed] = field(repr=False)
     timings_s: dict[str, float] = field(default_factory=dict)
     preload_state: ContactState | None = field(default=None, repr=False)
+    ball_coordinates: FloatArray | None = field(default=None, repr=False)
 
     def loop_arrays(
         self, *, with_free_play: bool = False

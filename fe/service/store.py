@@ -72,6 +72,8 @@ class ResultStore:
             arrays["w"] = np.stack([s.w for s in result.states])
             arrays["status"] = np.stack([s.status for s in result.states])
             arrays["alpha"] = np.stack([s.alpha for s in result.states])
+        if result.ball_coordinates is not None:
+            arrays["balls"] = np.asarray(result.ball_coordinates)
         if result.preload_state is not None:
             pre = result.preload_state
             arrays |= {"pre_p": pre.p, "pre_w": pre.w, "pre_status": pre.status}
@@ -105,6 +107,7 @@ class ResultStore:
                         ContactState(p, w, st, a)
                         for p, w, st, a in zip(z["p"], z["w"], z["status"], z["alpha"], strict=True)
                     )
+                balls = np.asarray(z["balls"]) if "balls" in z else None
                 preload = None
                 if "pre_p" in z:
                     preload = ContactState(z["pre_p"], z["pre_w"], z["pre_status"], z["pre_alpha"])
@@ -137,4 +140,5 @@ class ResultStore:
             configs={},
             timings_s={k: float(v) for k, v in meta["timings_s"].items()},
             preload_state=preload,
+            ball_coordinates=balls,
         )

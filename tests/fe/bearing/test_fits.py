@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -33,7 +35,9 @@ def test_fit_operators_are_well_posed(fits: FitSystem) -> None:
     assert len(np.unique(fits.geo.pair)) == 6
 
 
-def test_frictional_fits_dissipate_and_the_energy_balance_closes(fits: FitSystem) -> None:
+def test_frictional_fits_dissipate_and_the_energy_balance_closes(
+    fits: FitSystem, tmp_path: Path
+) -> None:
     settings = CycleSettings(amplitude_n=400.0, increments_per_stage=10, mu=0.2)
     result, _, preload_work = run_fit_cycle(fits, settings, 100.0)
     m = result.metrics()
@@ -41,6 +45,32 @@ def test_frictional_fits_dissipate_and_the_energy_balance_closes(fits: FitSystem
     assert m["friction_work_Nmm"] > 0
     assert m["eta"] > 1e-3  # bonded: |η| < 3e-5 (test_bearing_cycle)
     assert m["energy_balance_rel_err"] < 0.05
+    # the balls carry the clevis force from the inner rings to the outer ones
+    from fe.bearing.report import fit_ball_table
+
+    assert result.ball_coordinates is not None
+    assert result.ball_coordinates.shape == (len(result.increments) + 1, 2 * fits.n_balls + 1)
+    table = fit_ball_table(fits, result)
+    for key, force in (("plus_Fg", 400.0), ("minus_Fg", -400.0)):
+        rows = table[key]
+        fx = sum(
+            b["inner_load_N"] * np.cos(np.radians(b["contact_angle_deg"]))
+            * np.cos(np.radians(b["azimuth_deg"]))
+            for b in rows
+        )  # fmt: skip
+        assert fx == pytest.approx(force, rel=2e-3)
+    pre = table["preload"]
+    sin_a = [np.sin(np.radians(b["contact_angle_deg"])) for b in pre]
+    axial_1 = sum(b["inner_load_N"] * s for b, s in zip(pre, sin_a, strict=True) if b["bearing"] == 1)
+    assert axial_1 == pytest.approx(100.0, rel=1e-6)  # the plate force F_p
+    # and the balls survive the result store
+    from fe.service import ResultStore
+
+    store = ResultStore(tmp_path)
+    store.put("k" * 64, result)
+    back = store.get("k" * 64)
+    assert back is not None
+    np.testing.assert_array_equal(back.ball_coordinates, result.ball_coordinates)
 
 
 @pytest.mark.slow
