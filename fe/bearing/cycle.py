@@ -118,7 +118,8 @@ def ball_law(
     return f, Q, approach, H
 
 
-def _block_diag(H: FloatArray) -> FloatArray:
+def block_diag(H: FloatArray) -> FloatArray:
+    """Per-ball 2 × 2 blocks (n_b, 2, 2) as one block-diagonal matrix (2 n_b, 2 n_b)."""
     n = H.shape[0]
     out = np.zeros((2 * n, 2 * n))
     for j in range(n):
@@ -189,7 +190,7 @@ def solve_state(
         ):
             break
         _, _, _, H = ball_law(d0, v.reshape(n, 2), k_n, reg)
-        Hb = _block_diag(H)
+        Hb = block_diag(H)
         J = np.zeros((2 * n + k, 2 * n + k))
         J[: 2 * n, : 2 * n] = np.eye(2 * n) + W @ Hb
         J[: 2 * n, 2 * n :] = -GU
@@ -219,7 +220,7 @@ def grip_stiffness(system: BearingSystem, s: BallState) -> float:
     """Tangent dF/dδ_x of a converged state with σ and δ_z held [N/mm] (0: no ball loaded)."""
     n = system.n_balls
     _, _, _, H = ball_law(system.balls.d0, s.v_mm, system.balls.k_n)
-    Hb = _block_diag(H)
+    Hb = block_diag(H)
     g = system.G[:, GRIP_X]
     dv = np.linalg.solve(np.eye(2 * n) + system.W @ Hb, g)  # I + W H: W SPD, H PSD
     return float(g @ Hb @ dv)
@@ -343,7 +344,7 @@ def run_bearing_cycle(
     t1 = time.perf_counter()
     f_prev = 0.0
     for stage, (f_from, f_to, n) in enumerate(settings.stages()):
-        for target in _with_zero(
+        for target in with_zero_crossing(
             stage_targets(f_from, f_to, n, settings.grading), f_from, preload_n
         ):
             state = _advance(system, state, f_prev, float(target), settings, preload_n, len(incs),
@@ -379,7 +380,7 @@ ZERO_REFINE = 8
 """Halvings of the force toward F = 0 on each side of a crossing without preload."""
 
 
-def _with_zero(
+def with_zero_crossing(
     targets: FloatArray,
     f_from: float,
     preload_n: float,

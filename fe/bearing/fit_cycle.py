@@ -11,9 +11,9 @@ ball coordinates ``v`` around one frictional contact solve per iteration::
 
 until ``v`` stops changing. Every contact solve starts from the previous increment's
 state, so the friction work is that of the converged iterate. The preload step finds σ
-by a secant iteration on the plate force (F = 0); it is one proportional increment, and
-its friction work is reported (it is not zero by construction: the fits may slip while
-the rings deform under the preload).
+by a secant iteration on the plate force (F = 0) with the fits frictionless (the pair is
+assembled before the fits' friction history starts), so it dissipates nothing by that
+choice; the rigid modes that friction alone would hold are held at zero there.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
 from cad.errors import ConvergenceError, ParameterError
-from fe.bearing.cycle import REG_FRACTION, _block_diag, _with_zero, ball_law
+from fe.bearing.cycle import REG_FRACTION, ball_law, block_diag, with_zero_crossing
 from fe.bearing.fits import GRIP, N_RIGID, FitSystem
 from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
 from fe.contact.state import LinearSolver
@@ -41,7 +41,7 @@ logger = logging.getLogger(__name__)
 FloatArray = npt.NDArray[np.float64]
 
 FIT_HALVINGS = 3
-"""Halvings of the force toward zero at a crossing without preload (``_with_zero``)."""
+"""Halvings of the force toward zero at a crossing without preload (``with_zero_crossing``)."""
 
 MAX_BALL_ITER = 30
 """Ball Newton iterations (each one contact solve) per increment."""
@@ -66,11 +66,14 @@ class FitState:
     ball_iterations: int
 
 
-def _ball(system: FitSystem, v: FloatArray, sigma: float, reg: float):  # type: ignore[no-untyped-def]
+def _ball(
+    system: FitSystem, v: FloatArray, sigma: float, reg: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Ball forces (2 n_b,), loads, approaches and the block-diagonal tangent at ``v`` and σ."""
     n = system.n_balls
     shifted = (v + sigma * system.preload_shift).reshape(n, 2)
     f, Q, approach, H = ball_law(system.balls.d0, shifted, system.balls.k_n, reg)
-    return f.ravel(), Q, approach, _block_diag(H)
+    return f.ravel(), Q, approach, block_diag(H)
 
 
 def solve_fit_increment(
@@ -322,7 +325,7 @@ def run_fit_cycle(
             # no point at F = 0 itself, and only FIT_HALVINGS toward it: near zero force
             # the pin is held by friction alone and the contact Newton stalls (it did at
             # F = −0.019 N of a 100 N cycle with eight halvings)
-            targets = _with_zero(
+            targets = with_zero_crossing(
                 stage_targets(f_from, f_to, n, settings.grading), f_from, preload_n,
                 at_zero=False, halvings=FIT_HALVINGS,
             )  # fmt: skip

@@ -120,12 +120,12 @@ class FitSystem(BallCounts):
 
 def reference_stiffness(balls: BallLines, load_n: float = REF_BALL_LOAD_N) -> FloatArray:
     """A fixed positive ball stiffness (Hertz tangent at ``load_n`` along each line)."""
-    from fe.bearing.cycle import _block_diag, ball_law
+    from fe.bearing.cycle import ball_law, block_diag
 
     e = balls.d0 / np.linalg.norm(balls.d0, axis=1)[:, None]
     approach = (load_n / balls.k_n) ** (2.0 / 3.0)
     _, _, _, H = ball_law(balls.d0, e * approach, balls.k_n)
-    return _block_diag(H)
+    return block_diag(H)
 
 
 def _once_per_node(geo: ContactGeometry) -> ContactGeometry:
