@@ -74,6 +74,7 @@ class MeasuredFeatures:
         eta_only: Rows measured by η only, shape (n_points,).
         clearance_mm: Radial clearance of each row [mm] (0 for the bearing hinge, whose
             ``points`` hold the preload); None: the first entry of ``points``.
+        design_variable: What the first entry of ``points`` is: ``clearance`` or ``preload``.
         max_rel_sigma: Features with σ > max_rel_sigma·|value| are uninformative
             (``FeatureSettings.max_rel_sigma``); inf keeps every finite feature.
     """
@@ -84,6 +85,7 @@ class MeasuredFeatures:
     eta_only: npt.NDArray[np.bool_] | None = None
     max_rel_sigma: float = math.inf
     clearance_mm: tuple[float, ...] | None = None
+    design_variable: str = "clearance"
 
     @property
     def informative(self) -> npt.NDArray[np.bool_]:
@@ -165,7 +167,13 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
         np.array(eta_only, dtype=bool),
         settings.max_rel_sigma,
         tuple(clearances),
+        "preload" if any(k[0] == "bearing" for k in data.replicate_groups()) else "clearance",
     )
+
+
+def design_text(meas: MeasuredFeatures, x: float) -> str:
+    """``Δr = 0.1 mm`` or ``F_p = 100 N``: the design variable of a row, for messages."""
+    return f"F_p = {x:g} N" if meas.design_variable == "preload" else f"Δr = {x:g} mm"
 
 
 def _eta_without_free_play(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:

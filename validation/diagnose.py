@@ -62,11 +62,12 @@ from validation.candidate_fit import (
     _eta_without_free_play,
     _folds,  # noqa: F401 (validation.calibrate imports it from here)
     chi2,
+    design_text,
     fit_candidate,
     measured_features,
     residuals,
 )
-from validation.evaluate import ModelEvaluator
+from validation.evaluate import ModelEvaluator, is_post_only
 from validation.features import FEATURES, derived
 from validation.measurements import MeasurementSet
 from validation.model_file import ModelSpec
@@ -134,7 +135,7 @@ def residual_pattern(model: FloatArray, meas: MeasuredFeatures) -> list[str]:
             if abs(grow) > 2 * math.hypot(s[i_hi], s[i_lo]):
                 trend = "grows" if grow > 0 else "shrinks"
                 words.append(
-                    f"{label} error {trend} with amplitude at Δr = {c:g} mm "
+                    f"{label} error {trend} with amplitude at {design_text(meas, c)} "
                     f"({e[i_lo]:+.0%} at {amps[i_lo]:g} N → {e[i_hi]:+.0%} at {amps[i_hi]:g} N)"
                 )
         if len(set(clear)) >= 2:
@@ -142,7 +143,7 @@ def residual_pattern(model: FloatArray, meas: MeasuredFeatures) -> list[str]:
             cs = list(by_c)
             if abs(by_c[cs[-1]] - by_c[cs[0]]) > 2 * float(np.mean(s)):
                 trend = "grows" if by_c[cs[-1]] > by_c[cs[0]] else "shrinks"
-                words.append(f"{label} error {trend} with clearance")
+                words.append(f"{label} error {trend} with {meas.design_variable}")
     return words + _largest_residuals(model, meas) or ["no residual beyond 2σ"]
 
 
@@ -162,7 +163,7 @@ def _largest_residuals(model: FloatArray, meas: MeasuredFeatures, k: int = 3) ->
         c, a = meas.points[i]
         name = "η" if meas.eta_rows[i] else FEATURES[j]
         sign = "model above data" if r[i, j] > 0 else "model below data"
-        out.append(f"{name} {r[i, j]:+.1f}σ at Δr = {c:g} mm, Fg = {a:g} N ({sign})")
+        out.append(f"{name} {r[i, j]:+.1f}σ at {design_text(meas, c)}, Fg = {a:g} N ({sign})")
     out.append(f"{len(big)} of {meas.n_obs} features beyond 2σ")
     return out
 
@@ -344,7 +345,7 @@ def _separating_test(a: CandidateFit, b: CandidateFit, meas: MeasuredFeatures) -
         quantity = "η" if meas.eta_rows[i] else FEATURES[k]
         if diff[i, k] >= 2.0 or not np.any(meas.eta_rows):
             return (
-                f"they differ most in {quantity} at Δr = {c:g} mm, Fg = {amp:g} N "
+                f"they differ most in {quantity} at {design_text(meas, c)}, Fg = {amp:g} N "
                 f"({diff[i, k]:.1f} σ); repeat that test (replicates shrink σ) or add cases beyond "
                 "the measured amplitudes and clearances there"
             )
@@ -355,7 +356,7 @@ def _separating_test(a: CandidateFit, b: CandidateFit, meas: MeasuredFeatures) -
     c, amp = meas.points[i]
     return (
         f"the measured η cannot separate them; measure the loop (force and displacement) at "
-        f"Δr = {c:g} mm, Fg = {amp:g} N: their {FEATURES[k]} differ by {rel[i, k]:.0%} "
+        f"{design_text(meas, c)}, Fg = {amp:g} N: their {FEATURES[k]} differ by {rel[i, k]:.0%} "
         f"({a.name}: {a.features[i, k]:.4g}, {b.name}: {b.features[i, k]:.4g})"
     )
 
@@ -475,6 +476,8 @@ def diagnose(
         ):
             why = REGISTRY[name].zero_clearance_reason
             skipped[name] = f"needs Δr = 0 at every case ({why})"
+        elif spec.kind == "bearing" and not is_post_only(name):
+            skipped[name] = "acts on the general hinge's pin contacts, not on the bearing hinge"
         else:
             names.append(name)
     fits = sorted(

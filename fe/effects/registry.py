@@ -206,7 +206,7 @@ def prestressed_zero(cond: Condensed, settings: CycleSettings) -> float:
     return float(unloaded_state(cond, EffectContext.contact_of(settings)).alpha[GRIP])
 
 
-def _post_increments(
+def post_increments(
     result: CycleResult, effects: Mapping[str, Mapping[str, float]], zero_mm: float = 0.0
 ) -> CycleResult:
     """Return ``result`` with post-processed δ; the series energy ``Σ ½(F_i + F_{i−1}) Δh`` is added.
@@ -264,6 +264,6 @@ def run_cycle_with_effects(
         zero = prestressed_zero(modified[1], settings) if overlap else 0.0
     t_apply = time.perf_counter() - t0
     raw = run_cycle(system, clearance_mm, settings, configs=modified)
-    result = _post_increments(raw, values, zero) if values else raw
+    result = post_increments(raw, values, zero) if values else raw
     object.__setattr__(result, "timings_s", {**raw.timings_s, "effects": t_apply})
     return EffectCycleResult(result, values, base)

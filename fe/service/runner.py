@@ -21,11 +21,13 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from cad.errors import HingelabError, ParameterError
 from fe.bearing.fits import FitSystem
@@ -109,7 +111,7 @@ def check_spec(spec: ModelSpec) -> None:
 
     Raises:
         ParameterError: For a bearing-hinge model choice whose cycle is not implemented
-            (``ball_model = "full"``) or effects on it.
+            (``ball_model = "full"``) or an effect that acts on the general hinge's contacts.
     """
     from cad.bearing import BallModel, BearingHingeParams
 
@@ -121,11 +123,29 @@ def check_spec(spec: ModelSpec) -> None:
             f"cycle yet: hingelab mesh --hinge bearing builds them), got "
             f"{spec.hinge.ball_model.value!r}"
         )
-    if spec.effects:
+    from fe.effects import REGISTRY, Effect
+
+    solve_side = sorted(n for n in spec.effects if type(REGISTRY[n]).apply is not Effect.apply)
+    if solve_side:
         raise ParameterError(
-            f"effects act on the general hinge's contacts only; the bearing model has "
-            f"{sorted(spec.effects)}"
+            f"effects {solve_side} act on the general hinge's pin contacts; the bearing hinge "
+            "takes only effects applied to its loop (e.g. frame_compliance)"
         )
+
+
+def _post_only(result: CycleResult, effects: Any) -> CycleResult:
+    """The bearing hinge's cycle with its (loop-only) effects applied to δ.
+
+    The tangent stiffness kept for the Hermite loop rule no longer holds once δ changes, so
+    it is dropped (the trapezoid is used).
+    """
+    if not effects:
+        return result
+    from fe.effects.registry import post_increments, validate_effects
+
+    out = post_increments(result, validate_effects(effects))
+    incs = tuple(dataclasses.replace(i, stiffness_n_per_mm=math.nan) for i in out.increments)
+    return dataclasses.replace(out, increments=incs)
 
 
 class ModelService:
@@ -243,15 +263,17 @@ class ModelService:
 
                 hinge = hinge_at(spec, point)
                 preload = float(getattr(hinge, "preload_n", 0.0))
-                return run_fit_cycle(prepared.system, settings, preload, progress=progress)[0]
+                fit = run_fit_cycle(prepared.system, settings, preload, progress=progress)[0]
+                return _post_only(fit, spec.effects)
             if isinstance(prepared.system, BearingSystem):
                 from fe.bearing.cycle import run_bearing_cycle
 
                 hinge = hinge_at(spec, point)
                 preload = float(getattr(hinge, "preload_n", 0.0))
-                return run_bearing_cycle(
+                result = run_bearing_cycle(
                     prepared.system, settings, preload, progress=progress
                 ).result
+                return _post_only(result, spec.effects)
             if spec.effects:
                 from fe.effects import run_cycle_with_effects
 

@@ -150,3 +150,19 @@ def test_a_result_of_an_older_store_format_is_recomputed_not_an_error(tmp_path):
     np.savez(store.path(key), meta=other, increments=np.zeros((3, 12)))
     with pytest.raises(Exception, match="stored key does not match"):
         store.get(key)
+
+
+def test_a_loop_effect_applies_to_the_bearing_hinge_and_a_contact_effect_is_refused():
+    spec = _bearing_spec()
+    point = DesignPoint(300.0, preload_n=100.0)
+    bare = ModelService().run_point(spec, point)
+    framed_spec = dataclasses.replace(
+        spec, effects={"frame_compliance": {"compliance_mm_per_n": 2e-5}}
+    )
+    framed = ModelService().run_point(framed_spec, point)
+    d0, d1 = bare.metrics()["disp_at_peak_mm"], framed.metrics()["disp_at_peak_mm"]
+    assert d1 - d0 == pytest.approx(2e-5 * 300.0, rel=1e-9)
+    assert all(np.isnan(i.stiffness_n_per_mm) for i in framed.increments)  # δ changed
+    contact = dataclasses.replace(spec, effects={"face_friction": {"clamp_force_n": 100.0}})
+    with pytest.raises(ParameterError, match=r"\['face_friction'\] act on the general hinge"):
+        ModelService().run(contact, [point])

@@ -106,3 +106,46 @@ def test_calibrate_recovers_mu_of_the_fits_from_eta_only_bearing_data(tmp_path, 
     assert fitted["model"]["mu"] == pytest.approx(0.3, rel=0.15)
     assert fitted["error"] < 0.5 * base["error"]
     assert report["compare"]["n_pass"] == 2
+
+
+def _bonded(mesh: dict, increments: int):  # type: ignore[no-untyped-def]
+    spec = _spec(mesh, increments)
+    from cad.bearing import BearingHingeParams
+
+    return dataclasses.replace(spec, hinge=BearingHingeParams())
+
+
+def test_diagnose_names_a_frame_compliance_hidden_in_bearing_loops(tmp_path):
+    """Loops of the tied bearing hinge from a finer mesh, with a test-frame compliance of
+    2e-5 mm/N added outside ``synth``, resampled and noised: diagnose must name it, and only
+    the effects that act on a loop are candidates for the bearing hinge."""
+    from fe.service import DesignPoint, ModelService
+    from validation.diagnose import DiagnoseSettings, diagnose
+    from validation.measurements import read_measurement_set
+
+    service = ModelService()
+    data_spec = _bonded(DATA_MESH, 16)
+    data = tmp_path / "data"
+    data.mkdir()
+    rng = np.random.default_rng(4)
+    rows = []
+    for fp, fg in ((0.0, 200.0), (100.0, 400.0), (200.0, 300.0)):
+        r = service.run_point(data_spec, DesignPoint(fg, preload_n=fp))
+        F, d = r.machine_path()
+        d = d + 2e-5 * F  # the frame, added here: not one of synth's own effects
+        s = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(F)))])
+        t = np.linspace(0.0, s[-1], 700)
+        Fm = np.interp(t, s, F) + rng.normal(0.0, 0.002 * fg, t.size)
+        dm = np.interp(t, s, d) + rng.normal(0.0, 2e-5, t.size)
+        cid = f"p{fp:g}_F{fg:g}"
+        np.savetxt(data / f"{cid}.csv", np.column_stack([Fm, dm]), delimiter=",",
+                   header="force_N,displacement_mm", comments="")  # fmt: skip
+        rows.append(f"{cid},bearing,0,{fp:g},{fg:g},{cid}.csv")
+    _cases_csv(data / "cases.csv", rows)
+    fast = DiagnoseSettings(grid_points=5, grid_decades=2.5, refine_iter=4, increments_per_stage=8)
+    d = diagnose(_bonded(MODEL_MESH, 8), read_measurement_set(data), fast)
+    assert d.verdict == "effect_missing", d.text()
+    assert d.effects == ("frame_compliance",)
+    assert d.candidates[0].value == pytest.approx(2e-5, rel=0.2)
+    assert "pin contacts" in d.skipped["face_friction"]
+    assert any("F_p = 200 N" in line for line in d.pattern)  # the bearing's design variable
