@@ -152,6 +152,7 @@ def test_a_result_of_an_older_store_format_is_recomputed_not_an_error(tmp_path):
         store.get(key)
 
 
+@pytest.mark.slow  # 13 s (two bearing systems)
 def test_a_loop_effect_applies_to_the_bearing_hinge_and_a_contact_effect_is_refused():
     spec = _bearing_spec()
     point = DesignPoint(300.0, preload_n=100.0)

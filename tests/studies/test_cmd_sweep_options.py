@@ -40,6 +40,7 @@ def test_bad_option_is_named(tmp_path, capsys, argv, needle):
     assert not (tmp_path / "o").exists()  # refused before anything was built or written
 
 
+@pytest.mark.slow  # 10 s; the resume logic is the general sweep's, tested fast there
 def test_bearing_sweep_is_preload_by_amplitude_and_resumes(tmp_path, capsys):
     import csv
 
