@@ -38,10 +38,10 @@ from cad.errors import MeshQualityError
 from cad.model import HingeModel, PairKind, SurfacePair
 from fe.assembly import Factorization, assemble_stiffness, dofs_of
 from fe.bearing.system import BallCounts, BallLines, ball_lines, patch_rows
-from fe.bearing.ties import Ties, tie_bonded_pairs
+from fe.bearing.ties import Ties, tie_bonded_pairs, unit_field
 from fe.element import ElementType
 from fe.hinge.geometry import ContactGeometry, contact_geometry, contact_operator
-from fe.hinge.system import BLOCK_RHS, rigid_modes
+from fe.hinge.system import BLOCK_RHS, nearest_node, rigid_modes, three_two_one
 from mesh.hexmesh import HexMesh
 
 logger = logging.getLogger(__name__)
@@ -166,8 +166,7 @@ def build_fit_system(
     Bt = (B @ T).tocsr()
     H_ref = reference_stiffness(balls)
     K0 = (T.T @ K @ T + Bt.T @ sp.csr_matrix(H_ref) @ Bt).tocsr()
-    pos = np.full(n_dof, -1, dtype=np.int64)
-    pos[ties.independent] = np.arange(len(ties.independent))
+    pos = ties.position()
     grip = mesh.set_nodes("clevis_load")
     held_nodes = np.concatenate(
         [mesh.set_nodes("tang_fixed"), grip, mesh.set_nodes("plate_preload")]
@@ -176,19 +175,11 @@ def build_fit_system(
     pin = mesh.part_nodes("pin")
     x = np.asarray(mesh.nodes)
     xp = x[pin]
-    lo, hi, r = xp[:, 2].min(), xp[:, 2].max(), float(np.hypot(xp[:, 0], xp[:, 1]).max())
-
-    def near(nodes: IntArray, p: tuple[float, float, float]) -> int:
-        return int(nodes[np.argmin(np.linalg.norm(x[nodes] - np.asarray(p), axis=1))])
-
-    a, b, c = near(pin, (0, 0, lo)), near(pin, (0, 0, hi)), near(pin, (r, 0, lo))
     rings = np.concatenate([mesh.part_nodes("inner_ring_0"), mesh.part_nodes("inner_ring_1")])
     free_rings = rings[pos[3 * rings] >= 0]
-    d = near(free_rings, (0.5 * params.bore_mm + 0.5, 0.0, 0.5 * params.width_mm))
-    support = np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * c + 1, 3 * d + 1])
-    held = pos[np.concatenate([dofs_of(held_nodes), support])]
-    if np.any(held < 0):
-        raise MeshQualityError("a fixed, grip or support DOF is tied: cannot hold it")
+    d = nearest_node(mesh, free_rings, (0.5 * params.bore_mm + 0.5, 0.0, 0.5 * params.width_mm))
+    support = np.append(three_two_one(mesh, pin), 3 * d + 1)
+    held = ties.held(np.concatenate([dofs_of(held_nodes), support]), "fixed, grip or support")
     free = np.setdiff1d(np.arange(len(ties.independent)), held)
     t["ties"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -205,10 +196,7 @@ def build_fit_system(
     spin = np.zeros((len(rings), 3))
     spin[:, 0], spin[:, 1] = -x[rings, 1], x[rings, 0]
     fields[dofs_of(rings), RING_SPIN] = spin.ravel()
-    u_ind = np.zeros(len(ties.independent))
-    u_ind[pos[3 * grip]] = 1.0
-    u_ind[free] = factor.solve(-(K0[free] @ u_ind))
-    fields[:, GRIP] = T @ u_ind
+    fields[:, GRIP] = unit_field(ties, K0, factor, free, pos[3 * grip])
     # fields on the independent DOFs (tied nodes follow their masters)
     G = np.column_stack([C @ fields[ties.independent, j] for j in range(N_RIGID)])
     Gb = np.column_stack([Bt @ fields[ties.independent, j] for j in range(N_RIGID)])

@@ -42,7 +42,7 @@ from cad.bearing_geometry import BearingHingeParams, contact_points, race_geomet
 from cad.errors import MeshQualityError
 from fe.assembly import Factorization, assemble_stiffness, dofs_of
 from fe.bearing.pair import bearing_from_params, contact_constants
-from fe.bearing.ties import Ties, tie_bonded_pairs
+from fe.bearing.ties import Ties, tie_bonded_pairs, unit_field
 from fe.element import ElementType
 from mesh.hexmesh import HexMesh
 
@@ -243,12 +243,10 @@ def build_bearing_system(
     ties = tie_bonded_pairs(mesh)
     T = ties.T
     K_ind = (T.T @ K @ T).tocsr()
-    pos = np.full(3 * mesh.n_nodes, -1, dtype=np.int64)
-    pos[ties.independent] = np.arange(len(ties.independent))
     grip_nodes = mesh.set_nodes("clevis_load")
-    held = pos[np.concatenate([dofs_of(mesh.set_nodes("tang_fixed")), dofs_of(grip_nodes)])]
-    if np.any(held < 0):
-        raise MeshQualityError("a grip or fixed-face node is tied: grips must be on master faces")
+    held = ties.held(
+        np.concatenate([dofs_of(mesh.set_nodes("tang_fixed")), dofs_of(grip_nodes)]), "grip"
+    )
     free = np.setdiff1d(np.arange(len(ties.independent)), held)
     t["ties"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -256,11 +254,9 @@ def build_bearing_system(
     t["factorisation"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     fields = np.zeros((3 * mesh.n_nodes, len(PARAMS)))
+    pos = ties.position()
     for col, comp in ((0, 0), (1, 2)):  # the grip face moves; the rest in equilibrium
-        u_ind = np.zeros(len(ties.independent))
-        u_ind[pos[3 * grip_nodes + comp]] = 1.0
-        u_ind[free] = factor.solve(-(K_ind[free] @ u_ind))
-        fields[:, col] = T @ u_ind
+        fields[:, col] = unit_field(ties, K_ind, factor, free, pos[3 * grip_nodes + comp])
     for part in PRELOAD_PARTS:
         fields[3 * mesh.part_nodes(part) + 2, 2] = -1.0
     balls = ball_lines(params)

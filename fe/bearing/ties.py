@@ -13,6 +13,7 @@ substitution, so chains of ties are exact.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -58,6 +59,44 @@ class Ties:
     independent: IntArray
     slave_nodes: IntArray
     max_distance_mm: float
+
+    def position(self) -> IntArray:
+        """Index of every DOF among ``independent``, −1 for a tied one, shape (n_dof,)."""
+        pos = np.full(self.T.shape[0], -1, dtype=np.int64)
+        pos[self.independent] = np.arange(len(self.independent))
+        return pos
+
+    def held(self, dofs: IntArray, what: str) -> IntArray:
+        """Independent indices of DOFs that are to be held (fixed, gripped, supported).
+
+        Raises:
+            MeshQualityError: If one of them is tied (a tied DOF follows its master).
+        """
+        idx = self.position()[dofs]
+        if np.any(idx < 0):
+            raise MeshQualityError(f"a {what} DOF is tied: it cannot be held")
+        return idx
+
+
+def unit_field(
+    ties: Ties, K_ind: sp.csr_matrix, factor: Any, free: IntArray, moved: IntArray
+) -> FloatArray:
+    """Displacement with the independent DOFs ``moved`` at 1 and the free ones in equilibrium.
+
+    Args:
+        ties: The ties (``u = T u_ind``).
+        K_ind: Stiffness on the independent DOFs, ``Tᵀ K T``.
+        factor: Factorisation of ``K_ind`` on ``free``.
+        free: Free independent DOFs.
+        moved: Independent DOFs given a unit displacement (held DOFs stay at 0).
+
+    Returns:
+        The field on all DOFs, shape (n_dof,) [mm per unit].
+    """
+    u_ind = np.zeros(len(ties.independent))
+    u_ind[moved] = 1.0
+    u_ind[free] = factor.solve(-(K_ind[free] @ u_ind))
+    return np.asarray(ties.T @ u_ind)
 
 
 def tie_bonded_pairs(mesh: HexMesh, tol_mm: float = TIE_DISTANCE_MM) -> Ties:

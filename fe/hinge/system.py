@@ -280,6 +280,28 @@ class HingeSystem:
         return 3 * self.mesh.n_nodes
 
 
+def nearest_node(mesh: HexMesh, nodes: IntArray, point: tuple[float, float, float]) -> int:
+    """The node of ``nodes`` closest to ``point`` [mm]."""
+    x = np.asarray(mesh.nodes)[nodes]
+    return int(nodes[np.argmin(np.linalg.norm(x - np.asarray(point), axis=1))])
+
+
+def three_two_one(mesh: HexMesh, nodes: IntArray) -> IntArray:
+    """Six DOFs that hold a floating body along the z axis rigidly and no more (3-2-1).
+
+    The node nearest the axis at each end (x, y, z and x, y) and one on the rim at the
+    low end (y), shape (6,). Only to factorise the body: its rigid modes are carried as
+    amplitudes, and the reactions at these DOFs vanish for a self-equilibrated load.
+    """
+    x = np.asarray(mesh.nodes)[nodes]
+    lo, hi = x[:, 2].min(), x[:, 2].max()
+    r = float(np.hypot(x[:, 0], x[:, 1]).max())
+    a = nearest_node(mesh, nodes, (0, 0, lo))
+    b = nearest_node(mesh, nodes, (0, 0, hi))
+    c = nearest_node(mesh, nodes, (r, 0, lo))
+    return np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * c + 1], dtype=np.int64)
+
+
 def build_system(
     mesh: HexMesh, kind: ElementType = ElementType.INCOMPATIBLE, *, cache_dir: Path | None = None
 ) -> HingeSystem:
@@ -307,14 +329,7 @@ def build_system(
     lug_free = np.setdiff1d(dofs_of(lug_nodes), fixed)
     pin_nodes = mesh.part_nodes("pin")
     x = np.asarray(mesh.nodes)[pin_nodes]
-    lo, hi = x[:, 2].min(), x[:, 2].max()
-    r = float(np.hypot(x[:, 0], x[:, 1]).max())
-
-    def near(p: tuple[float, float, float]) -> int:
-        return int(pin_nodes[np.argmin(np.linalg.norm(x - np.asarray(p), axis=1))])
-
-    a, b, c = near((0, 0, lo)), near((0, 0, hi)), near((r, 0, lo))
-    support = np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * c + 1], dtype=np.int64)
+    support = three_two_one(mesh, pin_nodes)
     pin_free = np.setdiff1d(dofs_of(pin_nodes), support)
     centre = x.mean(axis=0)
     R = np.zeros((n_dof, N_PIN_MODES))
