@@ -32,7 +32,7 @@ from cad.errors import ConvergenceError, ParameterError
 from fe.bearing.system import PARAMS, BearingSystem
 from fe.contact import ContactState
 from fe.contact.law import ContactStatus
-from fe.hinge.protocol import CycleSettings, stage_targets
+from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
 from fe.hinge.result import CycleResult, Increment
 
 logger = logging.getLogger(__name__)
@@ -430,34 +430,26 @@ def _advance(
         return BallState(np.zeros(n), np.zeros(n), _angles(system, v0), v0,
                          state.alpha * [0.0, 1.0, 1.0], 0)  # fmt: skip
     ref = max(abs(f_to), abs(f_from), preload_n, settings.amplitude_n * 1e-3)
-    last: ConvergenceError | None = None
-    for cut in range(settings.max_cutbacks + 1):
-        steps = 2**cut
+
+    def attempt(steps: int) -> BallState:
         s = state
-        try:
-            for j in range(1, steps + 1):
-                f = f_from + (f_to - f_from) * j / steps
-                s = solve_state(
-                    system,
-                    s.v_mm,
-                    s.alpha,
-                    (GRIP_X,),
-                    np.array([f]),
-                    tol=settings.tol,
-                    max_iter=settings.max_iter,
-                    ref_load_n=ref,
-                )
-            return s
-        except ConvergenceError as err:
-            last = err
-            logger.warning("increment %d: cutting back to %d sub-steps", increment, 2 * steps)
-    assert last is not None
-    raise ConvergenceError(
-        f"the cycle did not converge at F = {f_to:g} N after {settings.max_cutbacks} cut-backs",
-        increment=increment,
-        iteration=last.iteration,
-        residual=last.residual,
-        partial=partial(),
+        for j in range(1, steps + 1):
+            f = f_from + (f_to - f_from) * j / steps
+            s = solve_state(
+                system,
+                s.v_mm,
+                s.alpha,
+                (GRIP_X,),
+                np.array([f]),
+                tol=settings.tol,
+                max_iter=settings.max_iter,
+                ref_load_n=ref,
+            )
+        return s
+
+    what = f"the cycle at F = {f_to:g} N"
+    return with_cutbacks(
+        attempt, settings.max_cutbacks, increment=increment, what=what, partial=partial
     )
 
 

@@ -33,7 +33,7 @@ from fe.bearing.cycle import REG_FRACTION, ball_law, block_diag, with_zero_cross
 from fe.bearing.fits import GRIP, N_RIGID, FitSystem
 from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
 from fe.contact.state import LinearSolver
-from fe.hinge.protocol import CycleSettings, stage_targets
+from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
 from fe.hinge.result import CycleResult, Increment
 
 logger = logging.getLogger(__name__)
@@ -379,43 +379,35 @@ def _advance(
     if f_to == 0.0 and preload_n == 0.0 and f_from == 0.0:
         return state
     ref = max(abs(f_to), abs(f_from), preload_n, settings.amplitude_n * 1e-3)
-    last: ConvergenceError | None = None
-    for level in range(settings.max_cutbacks + 1):
-        try:
-            s = state
-            fric = normal = 0.0
-            for j in range(1, 2**level + 1):
-                f = f_from + (f_to - f_from) * j / 2**level
-                guess = None
-                if j == 1 and before is not None and before[0] != f_from:
-                    t = (f - f_from) / (f_from - before[0])
-                    b = before[1]
-                    guess = (
-                        s.v_mm + t * (s.v_mm - b.v_mm),
-                        np.asarray(s.contact.p) + t * (np.asarray(s.contact.p) - b.contact.p),
-                        np.asarray(s.contact.alpha)
-                        + t * (np.asarray(s.contact.alpha) - b.contact.alpha),
-                    )
-                s = solve_fit_increment(system, s, f, state.preload_mm, contact,
-                                        ref_load_n=ref, increment=index, guess=guess)  # fmt: skip
-                assert s.result is not None
-                fric += float(np.sum(s.result.friction_work))
-                normal += float(np.sum(s.result.normal_work))
-            if level and s.result is not None:
-                summed = dataclasses.replace(
-                    s.result, friction_work=np.array([fric]), normal_work=np.array([normal])
+
+    def attempt(n_sub: int) -> FitState:
+        s = state
+        fric = normal = 0.0
+        for j in range(1, n_sub + 1):
+            f = f_from + (f_to - f_from) * j / n_sub
+            guess = None
+            if j == 1 and before is not None and before[0] != f_from:
+                t = (f - f_from) / (f_from - before[0])
+                b = before[1]
+                guess = (
+                    s.v_mm + t * (s.v_mm - b.v_mm),
+                    np.asarray(s.contact.p) + t * (np.asarray(s.contact.p) - b.contact.p),
+                    np.asarray(s.contact.alpha)
+                    + t * (np.asarray(s.contact.alpha) - b.contact.alpha),
                 )
-                s = FitState(s.contact, s.v_mm, s.preload_mm, summed, s.ball_iterations)
-            return s
-        except ConvergenceError as err:
-            last = err
-            logger.warning("increment %d (F → %.4g N): cutting back: %s", index, f_to, err)
-    assert last is not None
-    raise ConvergenceError(
-        f"increment {index} (F {f_from:.4g} → {f_to:.4g} N) failed after "
-        f"{settings.max_cutbacks} cut-backs",
-        increment=index,
-        iteration=last.iteration,
-        residual=last.residual,
-        partial=partial(),
-    ) from last
+            s = solve_fit_increment(system, s, f, state.preload_mm, contact,
+                                    ref_load_n=ref, increment=index, guess=guess)  # fmt: skip
+            assert s.result is not None
+            fric += float(np.sum(s.result.friction_work))
+            normal += float(np.sum(s.result.normal_work))
+        if n_sub > 1 and s.result is not None:
+            summed = dataclasses.replace(
+                s.result, friction_work=np.array([fric]), normal_work=np.array([normal])
+            )
+            s = FitState(s.contact, s.v_mm, s.preload_mm, summed, s.ball_iterations)
+        return s
+
+    what = f"increment {index} (F {f_from:.4g} → {f_to:.4g} N)"
+    return with_cutbacks(
+        attempt, settings.max_cutbacks, increment=index, what=what, partial=partial
+    )

@@ -36,7 +36,7 @@ from cad.errors import ConvergenceError, ParameterError, check_range
 from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
 from fe.hinge.condensed import Condensed
 from fe.hinge.geometry import contact_geometry, split_window
-from fe.hinge.protocol import DEFAULT_MU, CycleSettings, stage_targets
+from fe.hinge.protocol import DEFAULT_MU, CycleSettings, stage_targets, with_cutbacks
 from fe.hinge.result import CycleResult, Increment
 from fe.hinge.system import (
     GRIP,
@@ -301,45 +301,34 @@ def _advance(
 
     Returns the final state and the IncrementResult with works summed over sub-steps.
     """
-    for level in range(settings.max_cutbacks + 1):
-        n_sub = 2**level
-        try:
-            s = state
-            works = np.zeros(2)
-            iters = 0
-            for k in range(1, n_sub + 1):
-                f = f_from + (f_to - f_from) * k / n_sub
-                e = np.zeros(N_RIGID)
-                e[GRIP] = -f  # clevis equilibrium: G_δᵀ p = −F
-                start = None
-                if previous is not None and k == 1 and previous[0] != f_from:
-                    t = (f - f_from) / (f_from - previous[0])
-                    start = (
-                        np.asarray(s.p) + t * (np.asarray(s.p) - np.asarray(previous[1].p)),
-                        np.asarray(s.alpha)
-                        + t * (np.asarray(s.alpha) - np.asarray(previous[1].alpha)),
-                    )
-                res = solve_increment(
-                    cond.W, cond.w0, s, contact, G=cond.G, e=e, increment=index, start=start
+
+    def attempt(n_sub: int) -> tuple[ContactState, IncrementResult]:
+        s = state
+        works = np.zeros(2)
+        iters = 0
+        for k in range(1, n_sub + 1):
+            f = f_from + (f_to - f_from) * k / n_sub
+            e = np.zeros(N_RIGID)
+            e[GRIP] = -f  # clevis equilibrium: G_δᵀ p = −F
+            start = None
+            if previous is not None and k == 1 and previous[0] != f_from:
+                t = (f - f_from) / (f_from - previous[0])
+                start = (
+                    np.asarray(s.p) + t * (np.asarray(s.p) - np.asarray(previous[1].p)),
+                    np.asarray(s.alpha) + t * (np.asarray(s.alpha) - np.asarray(previous[1].alpha)),
                 )
-                works += [res.friction_work.sum(), res.normal_work.sum()]
-                iters += res.iterations
-                s = res.state
-            if level:
-                logger.info("increment %d converged after %d cut-backs", index, level)
-            return s, _summed(res, works, iters)
-        except ConvergenceError as err:
-            last = err
-            logger.warning(
-                "increment %d (F %.4g → %.4g N) failed, cutting back: %s", index, f_from, f_to, err
+            res = solve_increment(
+                cond.W, cond.w0, s, contact, G=cond.G, e=e, increment=index, start=start
             )
-    raise ConvergenceError(
-        f"increment {index} (F {f_from:.4g} → {f_to:.4g} N) failed after {settings.max_cutbacks} cut-backs",
-        increment=index,
-        iteration=last.iteration,
-        residual=last.residual,
-        partial=partial(),
-    ) from last
+            works += [res.friction_work.sum(), res.normal_work.sum()]
+            iters += res.iterations
+            s = res.state
+        return s, _summed(res, works, iters)
+
+    what = f"increment {index} (F {f_from:.4g} → {f_to:.4g} N)"
+    return with_cutbacks(
+        attempt, settings.max_cutbacks, increment=index, what=what, partial=partial
+    )
 
 
 def _summed(res: IncrementResult, works: FloatArray, iters: int) -> IncrementResult:

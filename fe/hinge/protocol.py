@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import logging
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 import numpy.typing as npt
 
-from cad.errors import check_range
+from cad.errors import ConvergenceError, check_range
+
+logger = logging.getLogger(__name__)
+
+T = TypeVar("T")
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -83,3 +90,45 @@ def stage_targets(f_from: float, f_to: float, n: int, grading: float) -> FloatAr
     """Force targets of one stage, shape (n,) [N]: ``f_from + (f_to − f_from)·(k/n)^grading``."""
     s = (np.arange(1, n + 1) / n) ** grading
     return f_from + (f_to - f_from) * s
+
+
+def with_cutbacks(
+    attempt: Callable[[int], T],
+    max_cutbacks: int,
+    *,
+    increment: int,
+    what: str,
+    partial: Callable[[], object],
+) -> T:
+    """Run ``attempt(n_sub)`` with n_sub = 1, 2, 4, … sub-steps until one converges.
+
+    Args:
+        attempt: Solves the increment in ``n_sub`` equal sub-steps; raises ConvergenceError.
+        max_cutbacks: Halvings before giving up.
+        increment: Index of the increment, for messages.
+        what: The increment in words (e.g. ``increment 3 (F 0 → 40 N)``), for messages.
+        partial: Builds what is kept when the increment finally fails (the partial loop).
+
+    Raises:
+        ConvergenceError: ``"{what} failed after {max_cutbacks} cut-backs"`` with the last
+            attempt's iteration and residual and ``partial()``.
+    """
+    last: ConvergenceError | None = None
+    for level in range(max_cutbacks + 1):
+        try:
+            out = attempt(2**level)
+        except ConvergenceError as err:
+            last = err
+            logger.warning("%s failed, cutting back: %s", what, err)
+            continue
+        if level:
+            logger.info("increment %d converged after %d cut-backs", increment, level)
+        return out
+    assert last is not None
+    raise ConvergenceError(
+        f"{what} failed after {max_cutbacks} cut-backs",
+        increment=increment,
+        iteration=last.iteration,
+        residual=last.residual,
+        partial=partial(),
+    ) from last
