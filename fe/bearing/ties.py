@@ -12,6 +12,7 @@ substitution, so chains of ties are exact.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -97,6 +98,34 @@ def unit_field(
     u_ind[moved] = 1.0
     u_ind[free] = factor.solve(-(K_ind[free] @ u_ind))
     return np.asarray(ties.T @ u_ind)
+
+
+def assemble_tied(
+    mesh: HexMesh, kind: Any, required: tuple[str, ...]
+) -> tuple[sp.csr_matrix, Ties, dict[str, float]]:
+    """Check the facet sets a system needs, assemble K and tie the bonded pairs.
+
+    Args:
+        mesh: The mesh.
+        kind: Element formulation (``fe.element.ElementType``).
+        required: Facet sets the system holds or loads.
+
+    Returns:
+        (K on all DOFs [N/mm], the ties, wall times of "assembly" and "ties" [s]).
+
+    Raises:
+        MeshQualityError: Naming a missing facet set, or a tie without its master face.
+    """
+    from fe.assembly import assemble_stiffness
+
+    for name in required:
+        if name not in mesh.facet_sets:
+            raise MeshQualityError(f"the mesh has no facet set {name!r}: not this hinge's mesh")
+    t0 = time.perf_counter()
+    K = assemble_stiffness(mesh, kind)
+    t1 = time.perf_counter()
+    ties = tie_bonded_pairs(mesh)
+    return K, ties, {"assembly": t1 - t0, "ties": time.perf_counter() - t1}
 
 
 def tie_bonded_pairs(mesh: HexMesh, tol_mm: float = TIE_DISTANCE_MM) -> Ties:
