@@ -107,3 +107,21 @@ def with_option(err: ParameterError) -> ParameterError:
         if text.startswith(field_name + " ") and not text.startswith("--"):
             return ParameterError(f"{option}: {text}")
     return err
+
+
+def add_fit_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the options ``diagnose`` and ``calibrate`` share: model floor and increments."""
+    p.add_argument(
+        "--model-error",
+        type=float,
+        default=0.02,
+        metavar="REL",
+        help="relative model error floor of the features (default 0.02)",
+    )
+    p.add_argument(
+        "--increments",
+        type=int,
+        default=8,
+        metavar="N",
+        help="increments per stage (default 8; twice that with clearance)",
+    )

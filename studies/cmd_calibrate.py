@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cad.errors import ParameterError
+from studies.args import add_fit_arguments
 from studies.pipeline import check_writable_dir, dumps
 
 if TYPE_CHECKING:
@@ -37,20 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     p.add_argument("--json", action="store_true", help="print the ledger as JSON")
-    p.add_argument(
-        "--model-error",
-        type=float,
-        default=0.02,
-        metavar="REL",
-        help="relative model error floor (default 0.02)",
-    )
-    p.add_argument(
-        "--increments",
-        type=int,
-        default=8,
-        metavar="N",
-        help="increments per stage (default 8; twice that with clearance)",
-    )
+    add_fit_arguments(p)
     p.add_argument(
         "--uncertainty",
         type=float,

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from studies.args import add_fit_arguments
 from studies.pipeline import dumps
 
 
@@ -22,25 +23,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
     p.add_argument("data", type=Path, metavar="DATA_DIR", help="measurement folder (cases.csv)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument(
-        "--model-error",
-        type=float,
-        default=0.02,
-        metavar="REL",
-        help="relative model error floor of the features (default 0.02)",
-    )
+    add_fit_arguments(p)
     p.add_argument(
         "--alpha",
         type=float,
         default=0.01,
         help="false-alarm probability, in (0, 0.5] (default 0.01)",
-    )
-    p.add_argument(
-        "--increments",
-        type=int,
-        default=8,
-        metavar="N",
-        help="increments per stage (default 8; twice that with clearance)",
     )
     p.set_defaults(func=run)
 
