@@ -91,13 +91,6 @@ class PaperStudy:
         }  # fmt: skip
 
 
-def _read(table: Path, x_names: tuple[str, str]) -> tuple[np.ndarray, np.ndarray]:
-    with table.open() as fh:
-        rows = [r for r in csv.DictReader(fh) if r.get("eta") not in (None, "")]
-    x = np.array([[float(r[n]) for n in x_names] for r in rows])
-    return x, np.array([float(r["eta"]) for r in rows])
-
-
 def _paper_table(case: Any) -> dict[tuple[float, float], float]:
     from rsm.paper_printed import paper_table_path
 
@@ -116,8 +109,10 @@ def _hinge_report(
     from rsm.plots import plot_all
     from rsm.polynomial import fit_response_surface
     from rsm.query import extrema, threshold_region
+    from rsm.tables import read_xy
 
-    x, eta = _read(table, x_names)
+    xy = read_xy(table, x_names, "eta")
+    x, eta = xy.x, xy.y
     paper = _paper_table(case)
     rows = [
         {
