@@ -80,11 +80,21 @@ class BallState:
         return ContactState(p, w, status.astype(np.int8), self.alpha)
 
 
+def contact_angles(d0: FloatArray, v: FloatArray) -> FloatArray:
+    """Loaded contact angle of each ball against the radial plane, shape (n_b,) [deg].
+
+    Args:
+        d0: Unloaded groove-centre vectors (radial, axial), shape (n_b, 2) [mm].
+        v: Their relative displacements, shape (n_b, 2) [mm].
+    """
+    d = d0 + v
+    return np.asarray(np.degrees(np.arctan2(np.abs(d[:, 1]), d[:, 0])))
+
+
 def ball_state_of(system: BearingSystem, state: ContactState) -> BallState:
     """Rebuild a ``BallState`` from its stored ``ContactState``."""
     v = np.asarray(state.w[:, 1:])
-    d = system.balls.d0 + v
-    angle = np.degrees(np.arctan2(np.abs(d[:, 1]), d[:, 0]))
+    angle = contact_angles(system.balls.d0, v)
     return BallState(
         np.asarray(state.p[:, 0]), np.asarray(state.w[:, 0]), angle, v, np.asarray(state.alpha), 0
     )
@@ -211,8 +221,7 @@ def solve_state(
             t *= 0.5
         v, alpha, r1, r2 = v_try, a_try, s1, s2
     _, Q, approach, _ = ball_law(d0, v.reshape(n, 2), k_n)
-    d = d0 + v.reshape(n, 2)
-    angle = np.degrees(np.arctan2(np.abs(d[:, 1]), d[:, 0]))
+    angle = contact_angles(d0, v.reshape(n, 2))
     return BallState(Q, approach, angle, v.reshape(n, 2), alpha, it - 1)
 
 
@@ -268,7 +277,7 @@ def preload_step(
     s = settings or CycleSettings()
     n = system.n_balls
     if preload_n == 0.0:
-        zero = BallState(np.zeros(n), np.zeros(n), _angles(system, np.zeros((n, 2))),
+        zero = BallState(np.zeros(n), np.zeros(n), contact_angles(system.balls.d0, np.zeros((n, 2))),
                          np.zeros((n, 2)), np.zeros(3), 0)  # fmt: skip
         return PreloadResult(0.0, 0.0, 0.0, zero, 0.0)
     # start from the rigid-structure Hertz guess: each bearing's balls share F_p axially
@@ -297,11 +306,6 @@ def preload_step(
     return PreloadResult(
         preload_n, float(st.alpha[PRELOAD]), float(st.alpha[GRIP_Z]), st, elastic_energy(system, st)
     )
-
-
-def _angles(system: BearingSystem, v: FloatArray) -> FloatArray:
-    d = system.balls.d0 + v
-    return np.asarray(np.degrees(np.arctan2(np.abs(d[:, 1]), d[:, 0])))
 
 
 @dataclass(frozen=True)
@@ -427,7 +431,7 @@ def _advance(
         # linearly there, every ball's tangent being zero).
         n = system.n_balls
         v0 = np.zeros((n, 2))
-        return BallState(np.zeros(n), np.zeros(n), _angles(system, v0), v0,
+        return BallState(np.zeros(n), np.zeros(n), contact_angles(system.balls.d0, v0), v0,
                          state.alpha * [0.0, 1.0, 1.0], 0)  # fmt: skip
     ref = max(abs(f_to), abs(f_from), preload_n, settings.amplitude_n * 1e-3)
 

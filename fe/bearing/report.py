@@ -8,12 +8,34 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from fe.bearing.cycle import ball_law, ball_state_of
+from fe.bearing.cycle import ball_law, ball_state_of, contact_angles
 from fe.bearing.system import BearingSystem
 from fe.hinge.report import frames_of, write_series
 from fe.hinge.result import CycleResult
 
 FloatArray = npt.NDArray[np.float64]
+
+
+def _peaks(result: CycleResult) -> dict[str, int]:
+    """Loop-array indices (origin = 0) of +Fg and −Fg of the last loop."""
+    sl = result.last_loop()
+    F, _, _ = result.loop_arrays()
+    return {"plus_Fg": sl.stop - 1, "minus_Fg": sl.start + int(np.argmin(F[sl]))}
+
+
+def _rows(balls: Any, load_n: FloatArray, angle_deg: FloatArray) -> list[dict[str, Any]]:
+    """One row per ball: where it is, its load on both contacts, its contact angle."""
+    return [
+        {
+            "bearing": int(balls.bearing[j]),
+            "ball": int(balls.index[j]),
+            "azimuth_deg": float(np.degrees(balls.theta[j])),
+            "inner_load_N": float(load_n[j]),
+            "outer_load_N": float(load_n[j]),  # a free-rolling rigid ball: the same
+            "contact_angle_deg": float(angle_deg[j]),
+        }
+        for j in range(len(load_n))
+    ]
 
 
 def ball_table(system: BearingSystem, result: CycleResult) -> dict[str, Any]:
@@ -24,28 +46,14 @@ def ball_table(system: BearingSystem, result: CycleResult) -> dict[str, Any]:
         row per ball: bearing, ball, azimuth [deg], load Q on the inner and on the outer
         contact [N] (equal: a free-rolling rigid ball), loaded contact angle [deg].
     """
-    sl = result.last_loop()
-    F, _, _ = result.loop_arrays()
-    f = F[sl]
-    at = {"plus_Fg": sl.stop - 2, "minus_Fg": sl.start + int(np.argmin(f)) - 1}
-    states = {k: result.states[i] for k, i in at.items()}
+    # loop-array index i is increment i − 1
+    states = {k: result.states[i - 1] for k, i in _peaks(result).items()}
     if result.preload_state is not None:
         states = {"preload": result.preload_state, **states}
-    balls = system.balls
     out: dict[str, Any] = {}
     for key, st in states.items():
         b = ball_state_of(system, st)
-        out[key] = [
-            {
-                "bearing": int(balls.bearing[j]),
-                "ball": int(balls.index[j]),
-                "azimuth_deg": float(np.degrees(balls.theta[j])),
-                "inner_load_N": float(b.load_n[j]),
-                "outer_load_N": float(b.load_n[j]),
-                "contact_angle_deg": float(b.angle_deg[j]),
-            }
-            for j in range(system.n_balls)
-        ]
+        out[key] = _rows(system.balls, b.load_n, b.angle_deg)
     return out
 
 
@@ -56,29 +64,14 @@ def fit_ball_table(system: Any, result: CycleResult) -> dict[str, Any]:
     """
     if result.ball_coordinates is None:
         return {}
-    sl = result.last_loop()
-    F, _, _ = result.loop_arrays()
     # loop-array index i is increment i − 1, i.e. ball_coordinates row i
-    rows = {"preload": 0, "plus_Fg": sl.stop - 1, "minus_Fg": sl.start + int(np.argmin(F[sl]))}
     balls = system.balls
     out: dict[str, Any] = {}
-    for key, i in rows.items():
+    for key, i in {"preload": 0, **_peaks(result)}.items():
         c = np.asarray(result.ball_coordinates[i])
-        v = c[:-1] + c[-1] * system.preload_shift
-        d = balls.d0 + v.reshape(-1, 2)
-        _, Q, _, _ = ball_law(balls.d0, v.reshape(-1, 2), balls.k_n)
-        angle = np.degrees(np.arctan2(np.abs(d[:, 1]), d[:, 0]))
-        out[key] = [
-            {
-                "bearing": int(balls.bearing[j]),
-                "ball": int(balls.index[j]),
-                "azimuth_deg": float(np.degrees(balls.theta[j])),
-                "inner_load_N": float(Q[j]),
-                "outer_load_N": float(Q[j]),
-                "contact_angle_deg": float(angle[j]),
-            }
-            for j in range(len(Q))
-        ]
+        v = (c[:-1] + c[-1] * system.preload_shift).reshape(-1, 2)
+        _, Q, _, _ = ball_law(balls.d0, v, balls.k_n)
+        out[key] = _rows(balls, Q, contact_angles(balls.d0, v))
     return out
 
 
