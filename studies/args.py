@@ -75,14 +75,20 @@ def add_cluster_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def settings_from_args(args: argparse.Namespace) -> MeshSettings:
-    """Return mesh settings from the parsed options."""
+def settings_from_args(args: argparse.Namespace, *, balls: bool = True) -> MeshSettings:
+    """Return mesh settings from the parsed options.
+
+    Args:
+        args: The options (``--hinge``, ``--refinement``, ``--size``, ``--contact-size``).
+        balls: The bearing hinge's balls are meshed (``ball_model = "full"``, and the
+            ``mesh`` command); False for the ``hertz`` ball model (``MeshSettings.for_hinge``).
+    """
     kw: dict[str, float | int] = {"refinement": args.refinement}
     if args.size is not None:
         kw["size_mm"] = args.size
     if args.contact_size is not None:
         kw["contact_size_mm"] = args.contact_size
-    return MeshSettings.for_hinge(args.hinge, balls=True, **kw)
+    return MeshSettings.for_hinge(args.hinge, balls=balls, **kw)
 
 
 OPTION_OF_FIELD = {

@@ -248,16 +248,8 @@ def _bearing_spec(args: argparse.Namespace) -> Any:
         hinge = BearingHingeParams(**kw)
     except ParameterError as err:
         raise with_option(err) from err
-    mesh_kw: dict[str, float | int] = {"refinement": args.refinement}
-    if args.size is not None:
-        mesh_kw["size_mm"] = args.size
-    if args.contact_size is not None:
-        mesh_kw["contact_size_mm"] = args.contact_size
-    from mesh.settings import MeshSettings
-
-    balls = hinge.ball_model is BallModel.FULL
-    return ModelSpec("bearing", hinge, MeshSettings.for_hinge("bearing", balls=balls, **mesh_kw),
-                     CycleSettings())  # fmt: skip
+    mesh = settings_from_args(args, balls=hinge.ball_model is BallModel.FULL)
+    return ModelSpec("bearing", hinge, mesh, CycleSettings())
 
 
 def _bearing_summary(result: Any, system: Any, spec: Any) -> dict[str, Any]:

@@ -8,7 +8,6 @@ from pathlib import Path
 
 from cad.errors import ParameterError
 from fe.hinge.protocol import DEFAULT_MU
-from mesh.settings import MeshSettings
 from studies.args import add_cluster_arguments, add_mesh_arguments, settings_from_args, with_option
 from studies.pipeline import dumps
 from studies.sweep import SweepSettings, run_sweep
@@ -100,15 +99,7 @@ def _settings(args: argparse.Namespace) -> SweepSettings:
         raise ParameterError(
             f"--interfaces applies to --hinge bearing only, got --interfaces {args.interfaces}"
         )
-    mesh = settings_from_args(args)
-    if bearing:  # the hertz ball model meshes no balls
-        mesh = MeshSettings.for_hinge(
-            "bearing",
-            balls=False,
-            refinement=args.refinement,
-            **{k: v for k, v in (("size_mm", args.size), ("contact_size_mm", args.contact_size))
-               if v is not None},
-        )  # fmt: skip
+    mesh = settings_from_args(args, balls=not bearing)  # the hertz ball model meshes none
     return SweepSettings(
         clearances_mm=_floats("clearance", args.clearance or "0,0.1,0.2,0.3,0.4"),
         amplitudes_n=_floats("amplitude", args.amplitude),
