@@ -54,6 +54,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy import stats
 
+from fe.service.spec import INTERFACE_FRICTION
 from validation.candidate_fit import (
     CandidateFit,
     DiagnoseSettings,
@@ -67,7 +68,7 @@ from validation.candidate_fit import (
     measured_features,
     residuals,
 )
-from validation.evaluate import ModelEvaluator, is_post_only
+from validation.evaluate import ModelEvaluator
 from validation.features import FEATURES, derived
 from validation.measurements import MeasurementSet
 from validation.model_file import ModelSpec
@@ -436,6 +437,15 @@ def _verdict(
     )
 
 
+def _frictional_fits(spec: ModelSpec) -> bool:
+    """True for a bearing hinge whose fits are Coulomb contacts already."""
+    from cad.bearing import BearingHingeParams, Interfaces
+
+    return (
+        isinstance(spec.hinge, BearingHingeParams) and spec.hinge.interfaces is Interfaces.CONTACT
+    )
+
+
 def diagnose(
     spec: ModelSpec,
     data: MeasurementSet,
@@ -476,8 +486,14 @@ def diagnose(
         ):
             why = REGISTRY[name].zero_clearance_reason
             skipped[name] = f"needs Δr = 0 at every case ({why})"
-        elif spec.kind == "bearing" and not is_post_only(name):
+        elif not REGISTRY[name].applies_to(spec.kind) and spec.kind == "bearing":
             skipped[name] = "acts on the general hinge's pin contacts, not on the bearing hinge"
+        elif not REGISTRY[name].applies_to(spec.kind):
+            skipped[name] = (
+                f"acts on the bearing hinge's bonded interfaces; the {spec.kind} hinge has none"
+            )
+        elif name == INTERFACE_FRICTION and _frictional_fits(spec):
+            skipped[name] = "the fits are contacts already (interfaces = 'contact'): calibrate mu"
         else:
             names.append(name)
     fits = sorted(

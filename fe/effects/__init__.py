@@ -1,8 +1,10 @@
 """Physical effects a user can switch on, on top of elasticity + Coulomb contact.
 
 * :mod:`fe.effects.base` — the ``Effect`` interface, parameter specs, the context;
-* :mod:`fe.effects.models` — the five effects (frame compliance, roughness softening,
-  tangential compliance, interference, face friction);
+* :mod:`fe.effects.models` — the general hinge's five effects (frame compliance, roughness
+  softening, tangential compliance, interference, face friction);
+* :mod:`fe.effects.interfaces` — the bearing hinge's interface friction (its bonded fits
+  made Coulomb contacts);
 * :mod:`fe.effects.registry` — ``REGISTRY`` and the cycle with effects
   (``run_cycle_with_effects``), re-exported here.
 """
@@ -14,6 +16,7 @@ from fe.effects.registry import (
     EffectCycleResult,
     FaceFriction,
     FrameCompliance,
+    InterfaceFriction,
     Interference,
     ParamSpec,
     RoughnessSoftening,
@@ -34,6 +37,7 @@ __all__ = [
     "EffectCycleResult",
     "FaceFriction",
     "FrameCompliance",
+    "InterfaceFriction",
     "Interference",
     "ParamSpec",
     "RoughnessSoftening",

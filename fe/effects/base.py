@@ -110,11 +110,19 @@ class Effect:
         name: Registry name.
         params: Its parameters.
         zero_clearance_reason: Why the effect needs Δr = 0 ("" if it does not).
+        kinds: Hinge kinds (``fe.service.HingeKind`` values) whose solve the effect changes;
+            an effect that acts only on the loop (``apply`` left as the identity) applies
+            to every kind (``applies_to``).
     """
 
     name: str
     params: tuple[ParamSpec, ...]
     zero_clearance_reason: str = ""
+    kinds: tuple[str, ...] = ("general",)
+
+    def applies_to(self, kind: str) -> bool:
+        """True if the effect can act on a hinge of ``kind`` (``general`` or ``bearing``)."""
+        return kind in self.kinds or type(self).apply is Effect.apply
 
     def apply(
         self, configs: Mapping[int, Condensed], values: Values, ctx: EffectContext

@@ -47,6 +47,7 @@ from threadpoolctl import threadpool_limits
 
 from cad.errors import ParameterError
 from fe.effects.base import Effect, EffectContext, FloatArray, ParamSpec, Values
+from fe.effects.interfaces import InterfaceFriction
 from fe.effects.models import (
     FaceFriction,
     FrameCompliance,
@@ -66,6 +67,7 @@ __all__ = [
     "EffectCycleResult",
     "FaceFriction",
     "FrameCompliance",
+    "InterfaceFriction",
     "Interference",
     "ParamSpec",
     "RoughnessSoftening",
@@ -89,6 +91,7 @@ REGISTRY: Mapping[str, Effect] = types.MappingProxyType(
             TangentialCompliance(),
             Interference(),
             FaceFriction(),  # last: the effects before it act on the pin–hole points only
+            InterfaceFriction(),  # the bearing hinge's: swaps its structure (fe.service)
         )
     }
 )

@@ -38,11 +38,13 @@ from fe.hinge.result import CycleResult
 from fe.hinge.system import HingeSystem, build_system
 from fe.service.geometry import MeshedHinge, build_and_mesh
 from fe.service.spec import (
+    INTERFACE_FRICTION,
     DesignPoint,
     HingeKind,
     ModelSpec,
     geometry_key,
     hinge_at,
+    resolve_structural,
     result_key,
     structure_of,
 )
@@ -111,10 +113,26 @@ def check_spec(spec: ModelSpec) -> None:
 
     Raises:
         ParameterError: For a bearing-hinge model choice whose cycle is not implemented
-            (``ball_model = "full"``) or an effect that acts on the general hinge's contacts.
+            (``ball_model = "full"``), an effect that does not act on the model's hinge kind
+            (``fe.effects.Effect.applies_to``), or ``interface_friction`` on fits that are
+            contacts already.
     """
-    from cad.bearing import BallModel, BearingHingeParams
+    from cad.bearing import BallModel, BearingHingeParams, Interfaces
+    from fe.effects import REGISTRY
 
+    other = sorted(
+        n for n in spec.effects if n in REGISTRY and not REGISTRY[n].applies_to(spec.kind)
+    )
+    if other and spec.kind == HingeKind.BEARING:
+        raise ParameterError(
+            f"effects {other} act on the general hinge's pin contacts; the bearing hinge "
+            "takes effects applied to its loop (e.g. frame_compliance) and interface_friction"
+        )
+    if other:
+        raise ParameterError(
+            f"effects {other} act on the bearing hinge's bonded interfaces; the {spec.kind} "
+            "hinge has none (use kind = 'bearing')"
+        )
     if spec.kind != HingeKind.BEARING or not isinstance(spec.hinge, BearingHingeParams):
         return
     if spec.hinge.ball_model is not BallModel.HERTZ:
@@ -123,13 +141,10 @@ def check_spec(spec: ModelSpec) -> None:
             f"cycle yet: hingelab mesh --hinge bearing builds them), got "
             f"{spec.hinge.ball_model.value!r}"
         )
-    from fe.effects import REGISTRY, Effect
-
-    solve_side = sorted(n for n in spec.effects if type(REGISTRY[n]).apply is not Effect.apply)
-    if solve_side:
+    if INTERFACE_FRICTION in spec.effects and spec.hinge.interfaces is Interfaces.CONTACT:
         raise ParameterError(
-            f"effects {solve_side} act on the general hinge's pin contacts; the bearing hinge "
-            "takes only effects applied to its loop (e.g. frame_compliance)"
+            f"effects.{INTERFACE_FRICTION} makes bonded interfaces frictional, but interfaces = "
+            "'contact' already: their friction coefficient is the model's mu"
         )
 
 
@@ -183,6 +198,7 @@ class ModelService:
         from cad.general import GeneralHingeParams, make_general_hinge
 
         check_spec(spec)
+        spec = resolve_structural(spec)
         key = geometry_key(spec, clearance_mm)
         if key in self._prepared:
             self._prepared.move_to_end(key)
@@ -236,6 +252,8 @@ class ModelService:
             ParameterError: A parameter out of range (named).
             ConvergenceError: As ``fe.hinge.cycle.run_cycle`` (its ``partial`` kept).
         """
+        check_spec(spec)
+        spec = resolve_structural(spec)
         key = result_key(spec, point)
         if self.store is not None:
             hit = self.store.get(key)
@@ -320,6 +338,7 @@ class ModelService:
             One ``PointRun`` per distinct point, grouped by clearance in first-seen order.
         """
         check_spec(spec)
+        spec = resolve_structural(spec)
         unique: dict[str, DesignPoint] = {}
         for p in points:
             unique.setdefault(result_key(spec, p), p)

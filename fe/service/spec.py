@@ -166,6 +166,38 @@ def structure_of(spec: ModelSpec, clearance_mm: float) -> HingeParams:
     return hinge
 
 
+INTERFACE_FRICTION = "interface_friction"
+"""The effect that swaps the bearing hinge's structure (``fe.effects.interfaces``)."""
+
+
+def resolve_structural(spec: ModelSpec) -> ModelSpec:
+    """The model with its structure-changing effects written as the structure they make.
+
+    ``interface_friction`` on a bonded bearing hinge (``mu_interface > 0``) becomes
+    ``interfaces = "contact"`` with ``cycle.mu = mu_interface`` (the hertz balls carry no
+    friction, so the model's μ acts on nothing else); at 0 the effect is off and only
+    dropped. Every other spec is returned as it is, so keys and stored results are those
+    of the model the cycle really runs.
+    """
+    values = spec.effects.get(INTERFACE_FRICTION)
+    if values is None or not isinstance(spec.hinge, BearingHingeParams):
+        return spec
+    from cad.bearing import Interfaces
+
+    if spec.hinge.interfaces is not Interfaces.BONDED:
+        return spec  # refused by check_spec, with the reason
+    rest = {k: v for k, v in spec.effects.items() if k != INTERFACE_FRICTION}
+    mu = float(values.get("mu_interface", 0.0))
+    if mu == 0.0:
+        return dataclasses.replace(spec, effects=rest)
+    return dataclasses.replace(
+        spec,
+        hinge=dataclasses.replace(spec.hinge, interfaces=Interfaces.CONTACT),
+        cycle=dataclasses.replace(spec.cycle, mu=mu),
+        effects=rest,
+    )
+
+
 def package_version() -> str:
     """The installed hingelab version ("unknown" when run from a bare source tree)."""
     try:
@@ -203,6 +235,7 @@ def content_hash(obj: Any) -> str:
 
 def geometry_key(spec: ModelSpec, clearance_mm: float) -> str:
     """Hash of what the mesh and its condensation depend on (not the load or μ)."""
+    spec = resolve_structural(spec)
     return content_hash(
         {
             "kind": spec.kind,
@@ -217,8 +250,10 @@ def result_key(spec: ModelSpec, point: DesignPoint) -> str:
     """Hash of everything that determines the cycle at ``point``.
 
     The whole specification (its own amplitude replaced by the point's), the design
-    point, the contact-solver defaults and the package version.
+    point, the contact-solver defaults and the package version; a structure-changing
+    effect is keyed as the structure it makes (``resolve_structural``).
     """
+    spec = resolve_structural(spec)
     cycle = dataclasses.replace(spec.cycle, amplitude_n=point.amplitude_n)
     return content_hash(
         {
