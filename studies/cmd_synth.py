@@ -4,7 +4,9 @@
 --noise-force N --noise-disp MM --seed S [--cases "0:100,400;0.1:100,400"] --out DIR``
 writes ``cases.csv``, ``loops/<case>.csv`` and ``manifest.json`` (the hidden truth)
 into DIR (``validation.synth``). Without ``--cases`` the design is 3 clearances × 3
-amplitudes (``validation.synth.DEFAULT_DESIGN``). The data come from a finer mesh than
+amplitudes (``validation.synth.DEFAULT_DESIGN``), or for a bearing-hinge model (kind =
+"bearing") 3 preloads × 3 amplitudes (``DEFAULT_BEARING_DESIGN``; ``--cases`` then reads
+"preload:amp,amp;…" in N). The data come from a finer mesh than
 the model file's (``validation.synth.MESH_RULE``).
 """
 
@@ -40,7 +42,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "--cases",
         default=None,
         metavar="DESIGN",
-        help='"clearance:amp,amp;clearance:amp,..." (mm, N); default 3 × 3',
+        help='"clearance:amp,amp;clearance:amp,..." (mm, N), for a bearing-hinge model '
+        '"preload:amp,amp;..." (N, N); default 3 × 3',
     )
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     p.add_argument("--json", action="store_true", help="print the manifest as JSON")
@@ -78,7 +81,9 @@ def run(args: argparse.Namespace) -> int:
     from fe.effects import validate_effects
     from validation.model_file import read_model
     from validation.synth import (
+        DEFAULT_BEARING_DESIGN,
         DEFAULT_DESIGN,
+        DESIGN_VARIABLE,
         SynthSettings,
         design_cases,
         parse_design,
@@ -87,11 +92,13 @@ def run(args: argparse.Namespace) -> int:
 
     spec = read_model(args.model)
     hidden = validate_effects(parse_effects(args.effect))
-    design = DEFAULT_DESIGN if args.cases is None else parse_design(args.cases)
+    default = DEFAULT_BEARING_DESIGN if spec.kind == "bearing" else DEFAULT_DESIGN
+    variable = DESIGN_VARIABLE.get(spec.kind, DESIGN_VARIABLE["general"])[0]
+    design = default if args.cases is None else parse_design(args.cases, variable)
     settings = SynthSettings(
         seed=args.seed, noise_force_n=args.noise_force, noise_disp_mm=args.noise_disp
     )
-    report = synthesize(spec, hidden, design_cases(design), settings, args.out)
+    report = synthesize(spec, hidden, design_cases(design, spec.kind), settings, args.out)
     if args.json:
         print(dumps(report.manifest))
     else:

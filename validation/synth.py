@@ -61,7 +61,17 @@ DEFAULT_DESIGN: tuple[tuple[float, tuple[float, ...]], ...] = (
     (0.1, (100.0, 250.0, 400.0)),
     (0.2, (100.0, 250.0, 400.0)),
 )
-"""Default 9-case design: clearance [mm] → amplitudes [N] (3 × 3)."""
+"""Default 9-case design of the general hinge: clearance [mm] → amplitudes [N] (3 × 3)."""
+
+DEFAULT_BEARING_DESIGN: tuple[tuple[float, tuple[float, ...]], ...] = (
+    (0.0, (100.0, 250.0, 400.0)),
+    (100.0, (100.0, 250.0, 400.0)),
+    (200.0, (100.0, 250.0, 400.0)),
+)
+"""Default 9-case design of the bearing hinge: preload [N] → amplitudes [N] (3 × 3)."""
+
+DESIGN_VARIABLE = {"general": ("clearance_mm", 10.0), "bearing": ("preload_n", 500.0)}
+"""Hinge kind → its design variable (the first number of a design entry) and its upper bound."""
 
 
 @dataclass(frozen=True)
@@ -108,14 +118,21 @@ class SynthCase:
     """One synthetic test.
 
     Attributes:
-        case_id: Its name (``dr<Δr>mm_F<Fg>N``).
-        clearance_mm: Radial clearance Δr [mm].
+        case_id: Its name (``dr<Δr>mm_F<Fg>N``; ``fp<F_p>N_F<Fg>N`` for the bearing hinge).
+        clearance_mm: Radial clearance Δr [mm] (0 for the bearing hinge).
         amplitude_n: Force amplitude Fg [N].
+        preload_n: Axial preload F_p of the bearing hinge [N]; None for the general hinge.
     """
 
     case_id: str
     clearance_mm: float
     amplitude_n: float
+    preload_n: float | None = None
+
+    @property
+    def design_value(self) -> float:
+        """The case's design variable: Δr [mm] (general) or F_p [N] (bearing)."""
+        return self.clearance_mm if self.preload_n is None else self.preload_n
 
 
 def finer_mesh(mesh: MeshSettings, arc_factor: float = ARC_GRADING_FACTOR) -> MeshSettings:
@@ -136,29 +153,46 @@ def finer_mesh(mesh: MeshSettings, arc_factor: float = ARC_GRADING_FACTOR) -> Me
     )
 
 
-def design_cases(design: Sequence[tuple[float, Sequence[float]]]) -> tuple[SynthCase, ...]:
-    """Return the cases of a design (clearance → amplitudes), in order.
+def design_cases(
+    design: Sequence[tuple[float, Sequence[float]]], kind: str = "general"
+) -> tuple[SynthCase, ...]:
+    """Return the cases of a design (clearance or preload → amplitudes), in order.
+
+    Args:
+        design: Design value → amplitudes [N]; the value is the clearance [mm] of the
+            general hinge or the preload [N] of the bearing hinge (``DESIGN_VARIABLE``).
+        kind: Hinge kind.
 
     Raises:
-        ParameterError: A negative clearance, a non-positive amplitude, or a repeated case.
+        ParameterError: An unknown kind, a design value out of range, a non-positive
+            amplitude, or a repeated case.
     """
+    if kind not in DESIGN_VARIABLE:
+        raise ParameterError(f"kind must be one of {tuple(DESIGN_VARIABLE)}, got {kind!r}")
+    variable, top = DESIGN_VARIABLE[kind]
     out: list[SynthCase] = []
     seen: set[tuple[float, float]] = set()
-    for clearance, amps in design:
-        check_range("clearance_mm", clearance, 0.0, 10.0)
+    for x, amps in design:
+        check_range(variable, x, 0.0, top)
         for amp in amps:
             check_range("amplitude_n", amp, 0.0, 1e6, lo_open=True)
-            if (clearance, amp) in seen:
-                raise ParameterError(f"case Δr = {clearance:g} mm, Fg = {amp:g} N is repeated")
-            seen.add((clearance, amp))
-            out.append(SynthCase(f"dr{clearance:g}mm_F{amp:g}N", clearance, amp))
+            if (x, amp) in seen:
+                what = f"Δr = {x:g} mm" if kind == "general" else f"F_p = {x:g} N"
+                raise ParameterError(f"case {what}, Fg = {amp:g} N is repeated")
+            seen.add((x, amp))
+            if kind == "general":
+                out.append(SynthCase(f"dr{x:g}mm_F{amp:g}N", x, amp))
+            else:
+                out.append(SynthCase(f"fp{x:g}N_F{amp:g}N", 0.0, amp, preload_n=x))
     if not out:
         raise ParameterError("the design has no cases")
     return tuple(out)
 
 
-def parse_design(text: str) -> tuple[tuple[float, tuple[float, ...]], ...]:
-    """Parse ``"clearance:amp,amp,...;clearance:amp,..."`` (mm, N).
+def parse_design(
+    text: str, variable: str = "clearance_mm"
+) -> tuple[tuple[float, tuple[float, ...]], ...]:
+    """Parse ``"value:amp,amp,...;value:amp,..."``: clearance [mm] or preload [N], amplitudes [N].
 
     Raises:
         ParameterError: Naming the part that is not ``number:number[,number...]``.
@@ -173,7 +207,7 @@ def parse_design(text: str) -> tuple[tuple[float, tuple[float, ...]], ...]:
             design.append((float(head), amps))
         except ValueError:
             raise ParameterError(
-                f"--cases: {part!r} is not clearance_mm:amplitude_N[,amplitude_N...]"
+                f"--cases: {part!r} is not {variable}:amplitude_N[,amplitude_N...]"
             ) from None
     if not design:
         raise ParameterError(f"--cases: no cases in {text!r}")
@@ -323,9 +357,13 @@ def _data_run(
     from cad.errors import MeshQualityError
     from fe.service import DesignPoint
 
-    point = DesignPoint(case.amplitude_n, case.clearance_mm)
+    point = DesignPoint(case.amplitude_n, case.clearance_mm, case.preload_n)
     try:
-        return service.run_point(data_spec, point), service.prepare(data_spec, case.clearance_mm), data_spec
+        return (
+            service.run_point(data_spec, point),
+            service.prepare(data_spec, case.clearance_mm),
+            data_spec,
+        )
     except MeshQualityError as err:
         model_mesh = data_spec.mesh  # already finer: rebuild from its own rule
         softer = dataclasses.replace(
@@ -349,6 +387,20 @@ def _data_run(
         return result, service.prepare(alt, case.clearance_mm), alt
 
 
+def _n_contact_points(prepared: Any) -> int:
+    """Contact points of a prepared geometry: pin–hole (general); 2 per ball and the fits' (bearing)."""
+    from fe.bearing.fits import FitSystem
+    from fe.bearing.system import BearingSystem
+
+    system = prepared.system
+    if isinstance(system, FitSystem):
+        return int(system.n_points) + 2 * int(system.n_balls)
+    if isinstance(system, BearingSystem):
+        return 2 * int(system.n_balls)
+    configs = prepared.effect_configs or next(iter(prepared.configs.values()))
+    return len(configs[1].geo.slave)
+
+
 def _synthesize(
     spec: ModelSpec,
     hidden: Mapping[str, Mapping[str, float]],
@@ -359,8 +411,12 @@ def _synthesize(
     from fe.effects import validate_effects
     from fe.service import ModelService
 
-    if spec.kind != "general":
-        raise ParameterError(f"synth supports hinge kind 'general' only, got {spec.kind!r}")
+    for c in cases:
+        if (c.preload_n is not None) != (spec.kind == "bearing"):
+            raise ParameterError(
+                f"case {c.case_id} is a {'bearing' if c.preload_n is not None else 'general'}-"
+                f"hinge case, but the model is kind {spec.kind!r}"
+            )
     truth = validate_effects({**spec.effects, **hidden})
     mesh_settings = finer_mesh(spec.mesh)
     n_inc = spec.cycle.increments_per_stage * SYNTH_INCREMENT_FACTOR
@@ -388,7 +444,6 @@ def _synthesize(
         loop_file = f"loops/{case.case_id}.csv"
         write_loop_csv(out / loop_file, m)
         metrics = result.metrics()
-        configs = prepared.effect_configs or next(iter(prepared.configs.values()))
         records.append(
             {
                 **dataclasses.asdict(case),
@@ -397,18 +452,20 @@ def _synthesize(
                 "duration_s": float(m.time_s[-1]),
                 "force_offset_N": m.force_offset_n,
                 "disp_offset_mm": m.disp_offset_mm,
-                "n_contact_points": len(configs[1].geo.slave),
+                "n_contact_points": _n_contact_points(prepared),
                 "fe_metrics": {k: float(v) for k, v in metrics.items()},
             }
         )
     for c in cases:  # cases.csv in the order given
         rows.append(
-            f"{c.case_id},general,{c.clearance_mm:g},0,{c.amplitude_n:g},loops/{c.case_id}.csv,21"
+            f"{c.case_id},{spec.kind},{c.clearance_mm:g},{c.preload_n or 0.0:g},"
+            f"{c.amplitude_n:g},loops/{c.case_id}.csv,21"
         )
     out.mkdir(parents=True, exist_ok=True)
     (out / "cases.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
     manifest = {
         "generator": "hingelab synth (validation.synth)",
+        "hinge": spec.kind,
         "seed": settings.seed,
         "truth_effects": {k: dict(v) for k, v in truth.items()},
         "hidden_effects": {k: dict(v) for k, v in validate_effects(hidden).items()},
