@@ -59,9 +59,11 @@ the loop stops at ``max_iter`` with a ConvergenceError.
 Singular step matrices: where ``W`` is rank deficient (more contact constraints than
 body freedoms, e.g. stacked rigid bodies) the reduced Jacobian of a sticking set is
 singular and no Newton step exists. The first such step hands the iterate to the
-proximal-point fallback of :mod:`fe.contact.proximal` (inner problems on
-``W + ε D`` with a shifted ``w_free``, same fixed points, ``ε`` driven down), which shares
-the ``max_iter`` budget; problems with a nonsingular active set never reach it.
+regularised Newton fallback of :mod:`fe.contact.proximal` (each step is the Newton step
+of the proximal problem on ``W + ε D`` with a shifted ``w_free``, which has the original
+residual; ``ε`` follows ``ρ`` down, Levenberg–Marquardt style, and a nonmonotone line
+search accepts the steps), which shares the ``max_iter`` budget (one iteration per step,
+rejected ones included); problems with a nonsingular active set never reach it.
 
 Convergence: the scaled residual ``ρ = max(|C/r|_∞ / d_ref, |Gᵀp - e|_∞ / f_ref)`` must
 drop to ``tol``, where ``d_ref = max(|W p|_∞, |G α|_∞, |w_free - (0, w_t_prev)|_∞)`` [mm]

@@ -25,18 +25,27 @@ RESCUE_FACTORS = (0.1, 10.0, 0.01, 100.0, 1e-3, 1e3)
 
 
 def _line_search(
-    prob: Problem, it: Iterate, step: Step, r: FloatArray, settings: ContactSettings
+    prob: Problem,
+    it: Iterate,
+    step: Step,
+    r: FloatArray,
+    settings: ContactSettings,
+    ref: float | None = None,
 ) -> Iterate | None:
     """Armijo backtracking on the merit; None if no step >= min_step decreases it.
 
-    One product ``W dp`` serves every trial: ``W (p + τ dp) = W p + τ W dp``.
+    One product ``W dp`` serves every trial: ``W (p + τ dp) = W p + τ W dp``. With
+    ``ref`` (>= ``it.merit``, e.g. the largest of the last few merits) the decrease is
+    measured from ``ref`` instead (a nonmonotone search); None keeps it monotone.
     """
     W_dp = (prob.W @ step.dp.ravel()).reshape(-1, 3)
     tau = 1.0
     while tau >= settings.min_step:
         alpha = it.alpha + tau * (step.alpha_new - it.alpha)
         trial = evaluate(prob, it.p + tau * step.dp, alpha, r, it.Wp + tau * W_dp)
-        if trial.merit <= (1.0 - 2.0 * settings.armijo * tau) * it.merit:
+        decrease = 2.0 * settings.armijo * tau
+        bound = (1.0 - decrease) * it.merit if ref is None else ref - decrease * it.merit
+        if trial.merit <= bound:
             return trial
         tau *= 0.5
     return None

@@ -1,19 +1,26 @@
-"""Proximal-point fallback for singular reduced Jacobians (rank-deficient ``W``).
+"""Regularised (proximal) Newton fallback for singular reduced Jacobians (rank-deficient ``W``).
 
 Internal to :mod:`fe.contact`. When the Delassus operator is rank deficient (more contact
 constraints than body freedoms, as in stacks of rigid bodies) the reduced Jacobian of
-the active set is singular and no Newton step exists. The proximal-point iteration
+the active set is singular and no Newton step exists. Each iteration here takes instead
+the Newton step of the proximal-point problem at the current force ``p_j``,
 
-    p_{j+1} solves the contact problem with  W_ε = W + ε I,  w_free,ε = w_free - ε p_j
+    W_ε = W + ε I,   w_free,ε = w_free - ε p_j,
 
-has the same solutions as the original problem at its fixed points
-(``W_ε p + w_free,ε = W p + w_free`` when ``p_{j+1} = p_j``), and ``W_ε`` is positive
-definite, so the inner problems are solved by the same globalised Newton. ``ε`` starts
-at ``eps_start · mean(diag W)``, is divided by ``1/shrink`` after each inner solve that
-converged quickly (the outer contraction factor on an eigenvalue λ of ``W`` is
-``ε/(λ + ε)``), and grown after an inner failure. Each inner solve stops at a tolerance
-tied to the current outer residual (inexact proximal point); convergence is always
-judged on the original problem's ``ρ``.
+whose residual at ``p_j`` is the original one (``W_ε p_j + w_free,ε = W p_j + w_free``)
+and whose reduced Jacobian is nonsingular: a Levenberg–Marquardt step on the original
+Alart–Curnier equations. ``ε = clip(rate·ρ, eps_min, eps_start) · boost · mean(diag W_ii)``
+per point follows the residual ``ρ`` down, so the steps tend to the (minimum-norm)
+Newton steps and the iteration converges fast once the active set settles; the
+components of a step in the null space of ``W`` stay bounded by ``1/ε``.
+
+The step is accepted by a nonmonotone Armijo search on the original merit (the decrease
+is measured from the largest of the last ``memory`` merits): with many contacts changing
+status at once a monotone search on the nonsmooth merit creeps with steps of 1e-2 and
+less, which a nonmonotone one lets through. A step the search rejects, or a singular
+regularised matrix, multiplies ``boost`` by ``1/shrink`` (a larger ``ε``: a shorter,
+better-conditioned step); an accepted one divides it back towards 1. Every step counts
+as one iteration of the shared ``max_iter`` budget, rejected ones included.
 """
 
 from __future__ import annotations
@@ -23,8 +30,8 @@ import logging
 import numpy as np
 import numpy.typing as npt
 
-from fe.contact.globalise import Run, newton_loop
-from fe.contact.newton import Iterate, Problem, evaluate
+from fe.contact.globalise import Run, _line_search
+from fe.contact.newton import Iterate, Problem, evaluate, newton_step
 from fe.contact.state import ContactSettings, ProximalOptions
 
 FloatArray = npt.NDArray[np.float64]
@@ -41,66 +48,57 @@ def proximal_loop(
     opts: ProximalOptions,
     max_iter: int,
 ) -> Run:
-    """Proximal-point iteration from ``it`` until the original ``ρ <= settings.tol``.
+    """Regularised Newton iteration from ``it`` until the original ``ρ <= settings.tol``.
 
     Args:
         prob: The original problem.
         it: Starting iterate on ``prob``, evaluated with ``r_base``.
         r_base: Augmentation of the original problem, shape (m,), float64 [N/mm].
         cut: Absolute singular-value cut of the rigid-body Schur complement.
-        settings: Tolerance and Newton options.
+        settings: Tolerance, line-search and LU options.
         opts: Tuning.
-        max_iter: Budget of inner Newton iterations (all inner solves together).
+        max_iter: Budget of iterations (each one regularised Newton step).
 
     Returns:
         Where it stopped (``singular`` is False); converged iff ``run.it.rho <= tol``.
     """
     m = len(it.p)
     scale = np.diagonal(prob.W).reshape(m, 3).mean(axis=1)  # (m,) [mm/N]
-    eps_rel = opts.eps_start
-    history: list[float] = []
-    n_iter = rescues = n_factor = 0
     diag = np.diag_indices(3 * m)
+    boost_max = opts.eps_max / opts.eps_min
+    boost, merits, history = 1.0, [it.merit], []
+    n_iter = n_factor = rejected = 0
     while it.rho > settings.tol and n_iter < max_iter:
-        eps = eps_rel * scale  # (m,)
+        n_iter += 1
+        eps_rel = min(
+            float(np.clip(opts.rate * it.rho, opts.eps_min, opts.eps_start)) * boost, opts.eps_max
+        )
+        eps = eps_rel * scale  # (m,) [mm/N]
+        shift = eps[:, None] * it.p  # (m, 3) [mm]
         W_eps = prob.W.copy()
         W_eps[diag] += np.repeat(eps, 3)
-        w_free = prob.w_free - eps[:, None] * it.p
-        sub = prob._replace(W=W_eps, w_free=w_free, w_sum=float("nan"))
-        r_sub = settings.r_scale / np.diagonal(W_eps).reshape(m, 3).mean(axis=1)
-        tol = max(settings.tol, opts.inner_rate * it.rho)
-        start = evaluate(sub, it.p, it.alpha, r_sub)
-        budget = min(opts.inner_iter, max_iter - n_iter)
-        run = newton_loop(
-            sub,
-            start,
-            r_sub,
-            cut,
-            settings,
-            ws=None,
-            max_iter=budget,
-            tol=tol,
-            stop_on_singular=True,
-        )
-        n_iter += run.iterations
-        logger.debug(
-            "proximal: eps %.1e, inner %d its (singular %s), inner rho %.2e -> tol %.1e",
-            eps_rel,
-            run.iterations,
-            run.singular,
-            run.it.rho,
-            tol,
-        )
-        rescues += run.rescues
-        n_factor += run.factorizations
-        if run.singular or run.it.rho > tol:
-            eps_rel = min(eps_rel / opts.shrink, opts.eps_max)
-            if run.it.merit >= start.merit:
-                history.append(it.rho)
-                continue
-        it = evaluate(prob, run.it.p, run.it.alpha, r_base)
+        sub = prob._replace(W=W_eps, w_free=prob.w_free - shift, w_sum=float("nan"))
+        # the residual of the regularised problem at p is the original one: W_ε p = W p + ε p
+        start = evaluate(sub, it.p, it.alpha, r_base, it.Wp + shift)
+        step = newton_step(sub, start, r_base, cut, threads=settings.lu_threads)
+        new = None
+        if step is not None:
+            n_factor += 1
+            ref = max(merits[-opts.memory :])
+            new = _line_search(prob, it, step, r_base, settings, ref)
+        if new is None:  # singular or no acceptable step: regularise more
+            rejected += 1
+            boost = min(boost / opts.shrink, boost_max)
+            history.append(it.rho)
+            logger.debug("proximal: eps %.1e rejected (singular %s)", eps_rel, step is None)
+            continue
+        boost = max(boost * opts.shrink, 1.0)
+        it = new
+        merits.append(it.merit)
         history.append(it.rho)
-        logger.debug("proximal: outer rho %.3e", it.rho)
-        if run.iterations <= opts.fast_inner and not run.singular:
-            eps_rel = max(eps_rel * opts.shrink, opts.eps_min)
-    return Run(it, r_base, n_iter, tuple(history), rescues, n_factor, False)
+        logger.debug("proximal: eps %.1e, rho %.3e", eps_rel, it.rho)
+    if it.rho > settings.tol:
+        logger.debug(
+            "proximal: stopped at rho %.3e, %d of %d steps rejected", it.rho, rejected, n_iter
+        )
+    return Run(it, r_base, n_iter, tuple(history), rejected, n_factor, False)

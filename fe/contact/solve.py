@@ -93,7 +93,7 @@ def solve_increment(
         stop_on_singular=True,
     )
     runs = [run]
-    if run.singular:  # no Newton step exists (rank-deficient W): proximal-point fallback
+    if run.singular:  # no Newton step exists (rank-deficient W): regularised fallback
         budget = settings.max_iter - run.iterations
         it = evaluate(prob, run.it.p, run.it.alpha, r_base)
         runs.append(proximal_loop(prob, it, r_base, cut, settings, settings.proximal, budget))
@@ -101,7 +101,9 @@ def solve_increment(
     history = [rho0, *(rho for x in runs for rho in x.history)]
     if it.rho > settings.tol:
         reason = (
-            "; singular step matrix (rank-deficient W), proximal fallback" if run.singular else ""
+            "; singular step matrix (rank-deficient W), regularised Newton fallback"
+            if run.singular
+            else ""
         )
         partial = ContactState(it.p, it.w, it.law.status, it.alpha)
         raise ConvergenceError(

@@ -37,35 +37,35 @@ class LinearSolver(Enum):
 
 @dataclass(frozen=True)
 class ProximalOptions:
-    """Tuning of the proximal-point fallback (algorithmic only).
+    """Tuning of the regularised Newton fallback (algorithmic only; :mod:`fe.contact.proximal`).
 
     Attributes:
-        eps_start: First ``ε`` relative to ``mean(diag W)``.
-        eps_min: Smallest relative ``ε``.
-        eps_max: Largest relative ``ε`` (inner failures grow it up to this).
-        shrink: Factor on ``ε`` after an inner solve that took at most ``fast_inner``
-            iterations.
-        fast_inner: See ``shrink``.
-        inner_iter: Iteration budget of one inner solve.
-        inner_rate: Inner tolerance relative to the outer ``ρ`` (inexact proximal point).
+        rate: ``ε`` relative to ``mean(diag W)`` is ``rate · ρ`` (Levenberg–Marquardt:
+            the regularisation follows the residual down), clipped to
+            ``[eps_min, eps_start]`` and then multiplied by the rejection boost.
+        eps_start: Largest relative ``ε`` before boosts (far from the solution).
+        eps_min: Smallest relative ``ε`` (keeps the regularised matrix nonsingular).
+        eps_max: Largest relative ``ε`` after boosts.
+        shrink: Factor on the boost after an accepted step (its inverse after a rejected
+            step or a singular matrix).
+        memory: The line search measures the decrease from the largest of the last
+            ``memory`` merits (1: monotone).
     """
 
+    rate: float = 1e-3
     eps_start: float = 1e-2
     eps_min: float = 1e-10
     eps_max: float = 1e2
     shrink: float = 0.1
-    fast_inner: int = 3
-    inner_iter: int = 30
-    inner_rate: float = 1e-2
+    memory: int = 10
 
     def __post_init__(self) -> None:
+        check_range("proximal.rate", self.rate, 0.0, float("inf"), lo_open=True, hi_open=True)
         check_range("proximal.eps_min", self.eps_min, 0.0, 1.0, lo_open=True)
         check_range("proximal.eps_start", self.eps_start, self.eps_min, self.eps_max)
         check_range("proximal.eps_max", self.eps_max, self.eps_min, float("inf"), hi_open=True)
         check_range("proximal.shrink", self.shrink, 0.0, 1.0, lo_open=True, hi_open=True)
-        check_range("proximal.fast_inner", self.fast_inner, 1, float("inf"))
-        check_range("proximal.inner_iter", self.inner_iter, 1, float("inf"))
-        check_range("proximal.inner_rate", self.inner_rate, 0.0, 1.0, lo_open=True, hi_open=True)
+        check_range("proximal.memory", self.memory, 1, float("inf"))
 
 
 @dataclass(frozen=True)
@@ -230,7 +230,7 @@ class IncrementResult:
         rescues: How many rescues (predictor or ``r`` change) were needed.
         factorizations: LU factorisations done (iterations minus chord and Krylov steps).
         linear_iterations: GMRES iterations done (``LinearSolver.KRYLOV``).
-        regularised_iterations: Iterations of the proximal-point fallback (included in
+        regularised_iterations: Iterations of the regularised Newton fallback (included in
             ``iterations``); nonzero only where a step matrix was singular.
     """
 
