@@ -6,7 +6,9 @@ and ``max_iter = 200``, on one BLAS thread (as Siconos' column; several threads 
 tiny LUs were 10-60x slower on this shared machine), in a fresh process with a wall-time
 budget (KaplasTower and RockPile are dense 1710/1389-unknown problems). "Solved" is Siconos' error
 (``fc3d_compute_error``, recomputed here from ``W r + q``) ``<= 1e-8``; a problem where
-``solve_increment`` raised is reported as not solved with the error of its last iterate.
+``solve_increment`` raised is reported as not solved with the error of its last iterate
+and the error's message. "fallback N its" counts the regularised Newton steps taken after
+the first singular step matrix (each one LU; included in the iterations).
 Siconos' best solver and the project's previous result are read from the README's table.
 
     .venv/bin/python benchmarks/bench_fclib.py [--dir ../shared/peers/fclib] [--budget 300]
@@ -51,7 +53,7 @@ def _solve(path: str, queue: Any) -> None:
         if res.regularised_iterations:
             note = f"fallback {res.regularised_iterations} its"
     except ConvergenceError as err:
-        p, iters, note = err.partial.p, err.iteration, "raised ConvergenceError"
+        p, iters, note = err.partial.p, err.iteration, f"raised ConvergenceError: {err}"
         raised = True
     else:
         raised = False
