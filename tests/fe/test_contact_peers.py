@@ -104,6 +104,29 @@ def test_rockpile_that_no_peer_solves_raises_convergence_error():
     assert siconos_error(W, q, mu, err.value.partial.p) > SOLVED
 
 
+@pytest.mark.parametrize("seed", [0, 10])
+def test_rank_deficient_W_with_floating_bodies_goes_through_the_fallback(seed):
+    # 16 closed points on a rank-24 W with 3 rigid amplitudes: singular step matrices, so
+    # the regularised fallback must carry α (the bordered solve) and reach Gᵀp = e
+    rng = np.random.default_rng(seed)
+    m, k = 16, 3
+    B = rng.normal(size=(3 * m, 24))
+    W = B @ B.T / 24
+    G = np.zeros((3 * m, k))
+    G[0::3] = rng.normal(size=(m, k)) * 0.2 + 0.3
+    G[1::3] = rng.normal(size=(m, k)) * 0.05
+    q = rng.normal(size=(m, 3)) * 0.1
+    q[:, 0] -= 0.5
+    e = G.T @ np.column_stack([rng.uniform(0.0, 1.0, m), np.zeros((m, 2))]).ravel()
+    settings = ContactSettings(mu=0.3, max_iter=MAX_ITER)
+    res = solve_increment(W, q, ContactState.initial(m, k), settings, G=G, e=e)
+    p, alpha = res.state.p, res.state.alpha
+    assert res.regularised_iterations > 0
+    assert res.iterations <= 30
+    assert np.abs(G.T @ p.ravel() - e).max() <= 1e-10 * np.abs(e).max()
+    assert siconos_error(W, q.ravel() + G @ alpha, 0.3, p) <= SOLVED
+
+
 def test_per_point_mu_is_the_pointwise_law():
     rng = np.random.default_rng(3)
     m = 6
