@@ -2,6 +2,7 @@
 
 Usage: OMP_NUM_THREADS=1 HINGELAB_LU_THREADS=1 .venv/bin/python benchmarks/bench_one_ball.py
        [--levels 0 1 2] [--loads 50 100 200]
+       [--ball-x X] [--ball-y Y] [--ring-depth D] [--ring-y Y]   (body-size sensitivity)
 
 Each mesh level (fe.bearing.one_ball.MESH_LEVELS) runs in a fresh process: mesh,
 assembly, factorisation (PARDISO), normal condensation, then one frictionless solve per
@@ -33,15 +34,20 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from benchmarks._common import print_table, run_isolated
 
 
-def run_level(level: int, loads: tuple[float, ...]) -> dict[str, Any]:
-    """Build and solve one level; return its size, timings and per-load rows."""
+def run_level(level: int, loads: tuple[float, ...], sizes: dict[str, float]) -> dict[str, Any]:
+    """Build and solve one level; return its size, timings and per-load rows.
+
+    ``sizes`` overrides body sizes of the level's grid (ball_x, ball_y, ring_depth, ring_y).
+    """
+    import dataclasses
+
     from threadpoolctl import threadpool_limits
 
     from fe.bearing.one_ball import MESH_LEVELS, build_rig, solve_load
 
     with threadpool_limits(1, user_api="blas"):
         t0 = time.perf_counter()
-        rig = build_rig(MESH_LEVELS[level])
+        rig = build_rig(dataclasses.replace(MESH_LEVELS[level], **sizes))
         t_build = time.perf_counter() - t0
         rows = []
         for q in loads:
@@ -92,8 +98,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--levels", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--loads", type=float, nargs="+", default=[50.0, 100.0, 200.0])
+    for name in ("ball_x", "ball_y", "ring_depth", "ring_y"):
+        ap.add_argument(f"--{name.replace('_', '-')}", type=float, help="override [mm]")
     args = ap.parse_args()
     loads = tuple(args.loads)
+    sizes = {
+        k: getattr(args, k)
+        for k in ("ball_x", "ball_y", "ring_depth", "ring_y")
+        if getattr(args, k) is not None
+    }
 
     import numpy as np
 
@@ -101,7 +114,7 @@ def main() -> None:
 
     levels, rows, fits = [], [], []
     for level in args.levels:
-        out = run_isolated(run_level, level, loads)
+        out = run_isolated(run_level, level, loads, sizes)
         rows.extend(out.pop("rows"))
         levels.append(out)
         for race in ("inner", "outer"):
@@ -122,6 +135,8 @@ def main() -> None:
                         "c_nm_per_N": 1e6 * c,
                     }
                 )
+    if sizes:
+        print(f"Body sizes overridden [mm]: {sizes}")
     print("Mesh levels (wall = mesh + assembly + factorisation + condensation + all solves)")
     print_table(
         levels,

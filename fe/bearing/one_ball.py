@@ -5,7 +5,9 @@ default 708C geometry (:class:`cad.bearing_geometry.BearingHingeParams`) gives t
 the two groove tori and the contact line; :mod:`mesh.ball_block` meshes a column of the
 ball through both contacts and one block of each ring (half model, y ≥ 0), every contact
 node on the exact sphere or torus. The ball nodes near each contact are the slaves,
-measured against the exact tori (:func:`fe.hinge.twobody.two_body_geometry`).
+measured against the exact tori (node-to-surface, as
+:func:`fe.hinge.twobody.two_body_geometry`); the system is condensed on their normal
+directions only (:func:`condense_normal`, exact for μ = 0).
 
 Loading (frictionless): the inner block's far face is clamped; the outer block's far
 face is a rigid grip pushed along the contact line by Q (force control through
@@ -14,7 +16,8 @@ being two more amplitudes with zero load (one node on its axis holds its rotatio
 y, which frictionless forces through the centre leave undetermined). Half model: the grip
 carries Q/2 and y = 0 is a symmetry plane.
 
-Measurements per contact (``k`` = inner or outer):
+Measurements per contact (inner and outer), compared with the exact Hertz solution at
+the resultant contact force Q:
 
 * Semi-axes a (x, across the groove) and b (y, rolling direction) three ways: (1) the
   force moments: for the Hertz pressure ``<x²> = a²/5``, so ``a² = 5 (Σ F x²/Σ F − h_x²/6)``
@@ -27,9 +30,10 @@ Measurements per contact (``k`` = inner or outer):
 * Local approach: the mutual approach of the two points on the contact axis at depth
   ``d`` (a grid node near ``approach_depth_mm``) in ball and ring. Hertz (half-spaces)
   predicts ``δ_H − w(d_ball) − w(d_ring)`` with ``w(d)`` the Boussinesq displacement at
-  depth d under the Hertz pressure (:func:`fe.bearing.one_ball_post.halfspace_axis_displacement`). Measured close
-  to the contact, it is free of the bodies' far-field (bulk) compliance, which differs
-  between a finite ball column and ring blocks and the half-spaces of Hertz theory.
+  depth d under the Hertz pressure
+  (:func:`fe.bearing.one_ball_post.halfspace_axis_displacement`). Measured close to the
+  contact, it is free of the bodies' far-field (bulk) compliance, which differs between
+  a finite ball column and ring blocks and the half-spaces of Hertz theory.
 * Total approach: ball centre to each block's far face, ``δ_FE = δ_H + c Q`` with a bulk
   compliance c (linear in Q); over several loads, fitting ``δ = K Q^{2/3} + c Q`` gives
   the contact constant K to compare with Hertz's.
@@ -45,6 +49,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.bearing_geometry import BearingHingeParams, race_geometry
+from cad.errors import ParameterError
 from cad.surfaces import Torus
 from fe.assembly import dofs_of
 from fe.bearing.hertz import (
@@ -223,6 +228,16 @@ def condense_normal(system: TwoBodySystem, geo: ContactGeometry, block: int = 25
     return Condensed(geo=geo, C=C, W=W, w0=w0, wall_s=time.perf_counter() - t0)
 
 
+def _rigid_fields(mesh: HexMesh) -> FloatArray:
+    """Unit rigid fields, shape (n_dof, 3): outer block along z, ball along x, ball along z."""
+    fields = np.zeros((3 * mesh.n_nodes, 3))
+    fields[3 * mesh.part_nodes("outer") + 2, 0] = 1.0
+    ball = mesh.part_nodes("ball")
+    fields[3 * ball, 1] = 1.0
+    fields[3 * ball + 2, 2] = 1.0
+    return fields
+
+
 def build_rig(grid: BallBlockGrid, params: BearingHingeParams | None = None) -> OneBallRig:
     """Mesh, assemble, factorise and condense the one-ball model.
 
@@ -260,12 +275,7 @@ def build_rig(grid: BallBlockGrid, params: BearingHingeParams | None = None) -> 
     race_of = np.repeat(np.arange(2), [len(g.slave) for g in geos]).astype(np.int64)
     t1 = time.perf_counter()
     cond = condense_normal(system, geo)
-    fields = np.zeros((system.n_dof, 3))
-    fields[3 * mesh.part_nodes("outer") + 2, 0] = 1.0
-    ball = mesh.part_nodes("ball")
-    fields[3 * ball, 1] = 1.0
-    fields[3 * ball + 2, 2] = 1.0
-    G = zero_energy_map(system, cond, fields)
+    G = zero_energy_map(system, cond, _rigid_fields(mesh))
     timings = {"mesh": t_mesh, **system.timings_s, "condensation": time.perf_counter() - t1}
     return OneBallRig(p, grid, mesh, system, cond, G, race_of, timings)
 
@@ -330,6 +340,10 @@ def solve_load(
 
     Returns:
         (inner, outer) results.
+
+    Raises:
+        ParameterError: If a contact reaches the edge of the slave window.
+        ConvergenceError: If the contact solve does not converge.
     """
     m = rig.n_points
     res = solve_increment(
@@ -344,13 +358,8 @@ def solve_load(
     u = rig.system.factor.solve((rig.cond.C.T @ np.ravel(st.p))[rig.system.free])
     disp = np.zeros(rig.system.n_dof)
     disp[rig.system.free] = u
-    fields = np.zeros((rig.system.n_dof, 3))
     mesh = rig.mesh
-    fields[3 * mesh.part_nodes("outer") + 2, 0] = 1.0
-    ball = mesh.part_nodes("ball")
-    fields[3 * ball, 1] = 1.0
-    fields[3 * ball + 2, 2] = 1.0
-    uz = (disp + fields @ st.alpha).reshape(-1, 3)[:, 2]
+    uz = (disp + _rigid_fields(mesh) @ st.alpha).reshape(-1, 3)[:, 2]
     r = 0.5 * rig.params.ball_diameter_mm
     mat = rig.params.bearing_material
     out = []
@@ -358,6 +367,13 @@ def solve_load(
         sel = rig.race_of == k
         xyz = mesh.nodes[rig.cond.geo.slave[sel]]
         force = st.p[sel, 0]
+        rim = np.abs(xyz[:, 0]) >= np.abs(xyz[:, 0]).max() - 1e-9
+        rim |= xyz[:, 1] >= xyz[:, 1].max() - 1e-9
+        if np.any(force[rim] > 0.0):
+            raise ParameterError(
+                f"{race.value} contact reaches the edge of the contact window at Q = "
+                f"{load_n:g} N: widen fine_x/fine_y of the grid"
+            )
         area = rig.cond.geo.area_mm2[sel]
         axes = footprint_semi_axes(xyz[:, 0], xyz[:, 1], force, area, rig.grid.h_x, rig.grid.h_y)
         side = -1.0 if race is Race.INNER else 1.0
@@ -376,13 +392,13 @@ def solve_load(
                 hertz=hz,
                 load_n=2.0 * abs(float(force @ rig.cond.geo.frame[sel, 0, 2])),
                 n_closed=int(np.count_nonzero(force > 0.0)),
-                a_moment_mm=axes[0],
-                b_moment_mm=axes[1],
-                a_fit_mm=axes[2],
-                b_fit_mm=axes[3],
-                a_edge_mm=axes[4],
-                b_edge_mm=axes[5],
-                p0_mpa=axes[6],
+                a_moment_mm=axes.a_moment,
+                b_moment_mm=axes.b_moment,
+                a_fit_mm=axes.a_fit,
+                b_fit_mm=axes.b_fit,
+                a_edge_mm=axes.a_edge,
+                b_edge_mm=axes.b_edge,
+                p0_mpa=axes.p_max,
                 depth_mm=(d_ball, d_ring),
                 approach_local_mm=side * float(uz[nb] - uz[nr]),
                 approach_local_hertz_mm=hz.approach_mm - w[0] - w[1],

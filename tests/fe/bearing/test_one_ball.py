@@ -21,6 +21,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from cad.bearing_geometry import BearingHingeParams
+from cad.errors import ParameterError
 from fe.bearing.hertz import Race
 from fe.bearing.one_ball import MESH_LEVELS, ContactResult, build_rig, hertz_reference, solve_load
 from fe.bearing.one_ball_post import fit_contact_constant, halfspace_axis_displacement
@@ -74,6 +75,8 @@ def test_one_ball_coarse_200n():
     assert (inner.race, outer.race) == (Race.INNER, Race.OUTER)
     for r in (inner, outer):
         check(r, tol_fit=0.10)
+    with pytest.raises(ParameterError, match="edge of the contact window"):
+        solve_load(rig, 2000.0)  # a ≈ 1.3 mm: beyond the |x| <= 0.8 mm slave window
 
 
 @pytest.mark.slow
