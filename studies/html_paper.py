@@ -41,6 +41,54 @@ def _hinge_section(folder: Path, name: str, title: str, xs: tuple[str, str], h: 
     return Section(f"paper-{name}", title, join(parts))
 
 
+def _threshold_section(folder: Path, t: Any) -> Section:
+    rows = []
+    for name in ("general", "modified"):
+        o, p = t[name]["ours"], t[name]["paper_fit"]
+        rows.append(
+            [
+                name,
+                None if o is None else 100 * o["fraction_below"],
+                None if o is None else o["n_parts"],
+                100 * p["fraction_below"],
+                p["n_parts"],
+            ]
+        )
+    sc = t["general"]["smallest_clearance_mm"]
+    text = (
+        f"Smallest clearance with η < 0.05: ours {fmt(sc['ours'])} mm, the paper's surface "
+        f"{fmt(sc['paper_fit'])} mm, the paper's text {fmt(sc['paper_text'])} mm."
+    )
+    body = join(
+        [
+            table(["hinge", "ours below [%]", "pieces", "paper below [%]", "pieces"], rows),
+            tag("p", text),
+            figures([(folder / t["figure"], "η = 0.05 map")]),
+        ]
+    )
+    return Section("paper-threshold", "Where η < 0.05 (Fig. 14)", body)
+
+
+def _repeatability_section(rep: Any) -> Section:
+    rows = [
+        [
+            r["hinge"],
+            r["sigma_um"],
+            r["theta_rad"],
+            r["theta_rad_table7"],
+            r["eta_table7"],
+            r["eta_ours"],
+        ]
+        for r in rep["rows"]
+    ]
+    head = ["hinge", "σ [µm]", "θ = arcsin(6σ/L) [rad]", "θ Table 7", "η Table 7", "η ours"]
+    return Section(
+        "paper-repeatability",
+        "Repeatability and η (Table 7)",
+        join([table(head, rows), tag("p", rep["note"])]),
+    )
+
+
 def paper_study_report(folder: Path, report_dir: Path) -> ReportBody:
     """Read a ``hingelab paper`` folder (report.json, both sweeps, figures)."""
     r = read_json(folder / "report.json")
@@ -61,6 +109,10 @@ def paper_study_report(folder: Path, report_dir: Path) -> ReportBody:
             ]
         )
         sections.append(Section("paper-reduction", "What the bearing brings", body))
+    if r.get("threshold"):
+        sections.append(_threshold_section(folder, r["threshold"]))
+    if r.get("repeatability"):
+        sections.append(_repeatability_section(r["repeatability"]))
     loops = [(folder / "figures" / v, k) for k, v in (r.get("loops") or {}).items() if v]
     if loops:
         sections.append(Section("paper-loops", "Loops", figures(loops)))

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from studies import paper_threshold
 from studies.pipeline import dumps, strict_json
 
 GRID = (100.0, 200.0, 300.0, 400.0, 500.0)
@@ -103,8 +104,8 @@ def _paper_table(case: Any) -> dict[tuple[float, float], float]:
 
 def _hinge_report(
     name: str, table: Path, x_names: tuple[str, str], case: Any, out: Path
-) -> dict[str, Any]:
-    """Fit, plot and compare one hinge."""
+) -> tuple[dict[str, Any], Any]:
+    """Fit, plot and compare one hinge; return the report and its surface (None if too few points)."""
     from rsm.metrics import fit_metrics
     from rsm.plots import plot_all
     from rsm.polynomial import fit_response_surface
@@ -134,7 +135,7 @@ def _hinge_report(
     if degree == 0:
         out_h["surface"] = None
         out_h["eta_min"], out_h["eta_max"] = float(eta.min()), float(eta.max())
-        return out_h
+        return out_h, None
     surface = fit_response_surface(x, eta, degree, x_names=x_names, y_name="eta")
     m = fit_metrics(surface, warn=False)
     figures = plot_all(surface, m, out / "figures", threshold=0.05, prefix=f"{name}_")
@@ -156,7 +157,15 @@ def _hinge_report(
     out_h["below_0.05_range"] = {
         x_names[i]: [float(region.lower[i]), float(region.upper[i])] for i in range(2)
     }
-    return out_h
+    return out_h, surface
+
+
+def _eta_at(h: dict[str, Any] | None, x_names: tuple[str, str], at: tuple[float, float]) -> Any:
+    """Our η at one design point of a hinge's report, or None if it was not run."""
+    for p in (h or {}).get("points", []):
+        if (p[x_names[0]], p[x_names[1]]) == at:
+            return p["eta_ours"]
+    return None
 
 
 def _copy_loop(sweep_out: Path, label: str, dest: Path) -> str | None:
@@ -170,9 +179,14 @@ def _copy_loop(sweep_out: Path, label: str, dest: Path) -> str | None:
 
 def run_paper(study: PaperStudy, out: Path) -> dict[str, Any]:
     """Run both sweeps, fit, plot and compare; write ``report.json`` and ``report.md``."""
-    from rsm.paper_printed import GENERAL, MODIFIED
+    from rsm.paper_printed import GENERAL, MODIFIED, TABLE7_POINT
+    from studies.paper_threshold import repeatability_pairs, threshold_comparison
     from studies.sweep import run_sweep
 
+    hinges = (
+        ("general", ("clearance_mm", "amplitude_N"), GENERAL),
+        ("modified", ("preload_N", "amplitude_N"), MODIFIED),
+    )
     t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     sweeps = study.sweeps()
@@ -181,12 +195,17 @@ def run_paper(study: PaperStudy, out: Path) -> dict[str, Any]:
         "study": dataclasses.asdict(study),
         "sweeps": {n: _outcome(o, out) for n, o in outcomes.items()},
     }
-    for name, xs, case in (
-        ("general", ("clearance_mm", "amplitude_N"), GENERAL),
-        ("modified", ("preload_N", "amplitude_N"), MODIFIED),
-    ):
+    surfaces: dict[str, Any] = {}
+    for name, xs, case in hinges:
         table = outcomes[name].table
-        report[name] = _hinge_report(name, table, xs, case, out) if table.is_file() else None
+        report[name], surfaces[name] = (
+            _hinge_report(name, table, xs, case, out) if table.is_file() else (None, None)
+        )
+    if any(v is not None for v in surfaces.values()):
+        report["threshold"] = threshold_comparison(surfaces, out)
+    report["repeatability"] = repeatability_pairs(
+        {n: _eta_at(report[n], xs, TABLE7_POINT[n]) for n, xs, _ in hinges}
+    )
     loops = {}
     for name in ("general", "modified"):
         label = _label(sweeps[name], name)
@@ -303,6 +322,7 @@ def report_markdown(r: dict[str, Any]) -> str:
             f"| reduction of η_min | {_fmt(red['min'], '.1f')} % | {paper['min']} % |",
             f"| reduction of η_max | {_fmt(red['max'], '.1f')} % | {paper['max']} % |",
         ]
+    lines += paper_threshold.markdown(r.get("threshold"), r.get("repeatability"))
     loops = r.get("loops", {})
     lines += ["", "## Loops (the points nearest 400 N)", ""]
     lines += [f"![{k} loop](figures/{v})" for k, v in loops.items() if v]
