@@ -181,11 +181,15 @@ def _eta_without_free_play(model: FloatArray, meas: MeasuredFeatures) -> FloatAr
 
     A stated η (an η-only table, like the paper's, or ``hingelab cycle``'s report)
     excludes the free play: ``η = W / (π Fg (δ_max − 2Δr))``; the loop area W is the same
-    with or without the zero-force traverse.
+    with or without the zero-force traverse. A model loop whose δ_max is below Δr never
+    crossed the free play (clamped faces that hold the clevis below their slip force,
+    ``fe.hinge.freeplay``): nothing is taken off. Where the faces slide the clevis across,
+    the rectangle of that slide stays in W (it is dissipation).
     """
     elastic = np.array(model, dtype=np.float64, copy=True)
-    clearance = meas.clearance_mm or tuple(p[0] for p in meas.points)
-    elastic[:, 0] -= 2.0 * np.array(clearance)
+    clearance = np.array(meas.clearance_mm or tuple(p[0] for p in meas.points))
+    crossed = elastic[:, 0] > clearance
+    elastic[:, 0] -= np.where(crossed, 2.0 * clearance, 0.0)
     return derived(elastic, meas.amplitudes)[1]
 
 

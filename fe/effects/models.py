@@ -302,10 +302,6 @@ class FaceFriction(Effect):
             "axial clamp (bolt preload) pressing each clevis arm onto the tang",
         ),
     )
-    zero_clearance_reason: str = (
-        "the free play between the two touching configurations would drop the faces' "
-        "friction history"
-    )
 
     def apply(
         self, configs: Mapping[int, Condensed], values: Values, ctx: EffectContext
@@ -314,10 +310,12 @@ class FaceFriction(Effect):
         clamp = values["clamp_force_n"]
         if clamp == 0.0:
             return dict(configs)
-        self.refuse_clearance(configs, "clamp_force_n", clamp)
+        centred = configs.get(1) is not configs.get(-1)  # clearance: two configurations
         return map_configs(
             configs,
             lambda cond: (
-                clamped_faces(ctx.system, cond, clamp, ctx.contact(), FOOTPRINT_RADIUS_RATIO).cond
+                clamped_faces(
+                    ctx.system, cond, clamp, ctx.contact(), FOOTPRINT_RADIUS_RATIO, centred
+                ).cond
             ),
         )

@@ -57,7 +57,7 @@ from fe.effects.models import (
 )
 from fe.hinge.condensed import Condensed
 from fe.hinge.cycle import CycleResult, CycleSettings, Increment, configurations, run_cycle
-from fe.hinge.faces import unloaded_state
+from fe.hinge.faces import faces_only, unloaded_state
 from fe.hinge.system import GRIP, HingeSystem
 
 __all__ = [
@@ -197,16 +197,21 @@ class EffectCycleResult:
         return self.result.metrics()
 
 
-def prestressed_zero(cond: Condensed, settings: CycleSettings) -> float:
+def prestressed_zero(cond: Condensed, settings: CycleSettings, pin_centred: bool = False) -> float:
     """Return the grip displacement of the unloaded, prestressed hinge δ₀ [mm].
 
     With an initial overlap (``w0_n < 0`` somewhere) the hinge is prestressed before any
     load and the clevis settles at δ₀ ≠ 0 under F = 0. A test machine zeroes its
     displacement there, so the loop is referred to it. Computed as one frictional
     increment from the unloaded open state to F = 0 (``fe.hinge.faces.unloaded_state``),
-    for any points with an overlap: pin–hole (interference) or clamped faces.
+    for any points with an overlap: pin–hole (interference) or clamped faces. With
+    clearance (``pin_centred``) the unloaded hinge has the pin centred, touching nothing:
+    the faces alone, δ₀ relative to the centred clevis (``fe.hinge.freeplay``).
     """
-    return float(unloaded_state(cond, EffectContext.contact_of(settings)).alpha[GRIP])
+    contact = EffectContext.contact_of(settings)
+    if pin_centred:
+        return float(unloaded_state(faces_only(cond), contact).alpha[0])
+    return float(unloaded_state(cond, contact).alpha[GRIP])
 
 
 def post_increments(
@@ -264,7 +269,7 @@ def run_cycle_with_effects(
     with threadpool_limits(limits=settings.blas_threads, user_api="blas"):  # as run_cycle's solves
         modified = apply_effects(base, values, EffectContext(system, settings))
         overlap = any(np.any(np.asarray(c.w0)[:, 0] < 0.0) for c in modified.values())
-        zero = prestressed_zero(modified[1], settings) if overlap else 0.0
+        zero = prestressed_zero(modified[1], settings, clearance_mm > 0) if overlap else 0.0
     t_apply = time.perf_counter() - t0
     raw = run_cycle(system, clearance_mm, settings, configs=modified)
     result = post_increments(raw, values, zero) if values else raw

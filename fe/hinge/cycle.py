@@ -134,6 +134,10 @@ def _run(
     configs: dict[int, Condensed],
     progress: Callable[[int, int], None] | None,
 ) -> CycleResult:
+    if clearance_mm > 0 and np.any(np.asarray(configs[1].geo.pair) < 0):
+        from fe.hinge.freeplay import run_sliding  # clamped faces: the free play is slid
+
+        return run_sliding(system, clearance_mm, settings, configs, progress)
     contact = ContactSettings(mu=settings.mu, tol=settings.tol, max_iter=settings.max_iter)
     side = 1
     cond = configs[side]

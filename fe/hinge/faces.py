@@ -43,7 +43,7 @@ from fe.hinge.geometry import (
     contact_operator,
     project_on_facets,
 )
-from fe.hinge.system import HingeSystem
+from fe.hinge.system import GRIP, HingeSystem
 from mesh.facets import boundary_facets, select_facets
 from mesh.hexmesh import HexMesh
 
@@ -237,6 +237,28 @@ CALIBRATION_OVERLAP_MM = 1e-3
 """Face overlap of the clamp calibration solve [mm] (any value: the solve is homogeneous)."""
 
 
+def faces_only(cond: Condensed) -> Condensed:
+    """The face points of a configuration alone, with the grip as the only rigid amplitude.
+
+    The faces while the pin is centred in its clearance and touches nothing: the pin's
+    modes do not move face points (their columns of ``G`` are zero there), so they are
+    dropped; ``α[0]`` of the result is the grip displacement.
+    """
+    keep = np.flatnonzero(np.asarray(cond.geo.pair) < 0)
+    rows = (3 * keep[:, None] + np.arange(3)).ravel()
+    geo = ContactGeometry(
+        *(np.asarray(getattr(cond.geo, k))[keep] for k in ContactGeometry.__dataclass_fields__)
+    )
+    return Condensed(
+        geo=geo,
+        C=cond.C[rows],
+        W=np.asarray(cond.W)[np.ix_(rows, rows)],
+        w0=np.asarray(cond.w0)[keep],
+        wall_s=0.0,
+        G=np.asarray(cond.G)[rows][:, [GRIP]],
+    )
+
+
 def unloaded_state(cond: Condensed, contact: ContactSettings) -> ContactState:
     """Return the state of the unloaded hinge: one increment from the open state to F = 0.
 
@@ -285,15 +307,22 @@ per face); dropped when the configuration is (``weakref.finalize``)."""
 
 
 def _calibrated_extension(
-    system: HingeSystem, cond: Condensed, contact: ContactSettings, radius_ratio: float
+    system: HingeSystem,
+    cond: Condensed,
+    contact: ContactSettings,
+    radius_ratio: float,
+    pin_centred: bool = False,
 ) -> tuple[Extended, float]:
     """Return the face points appended to ``cond`` and the force per face at the unit overlap.
 
     Neither depends on the clamp force, so a fit that tries many clamp values (or a run at
-    many amplitudes) condenses and calibrates once per configuration and μ.
+    many amplitudes) condenses and calibrates once per configuration and μ. With
+    ``pin_centred`` the calibration solve has the faces alone (``faces_only``: the pin
+    centred in a clearance touches nothing), so both touching configurations get the
+    same overlap.
     """
     mu_key = tuple(np.ravel(contact.mu).tolist())  # a scalar or per-point μ, hashable
-    key = (id(system), id(cond), mu_key, contact.tol, contact.max_iter, radius_ratio)
+    key = (id(system), id(cond), mu_key, contact.tol, contact.max_iter, radius_ratio, pin_centred)
     if key not in _CALIBRATIONS:
         geo = face_geometry(system.mesh, radius_ratio)
         unit = np.zeros((len(geo.slave), 3))
@@ -302,8 +331,11 @@ def _calibrated_extension(
         m = ext.extra.start
         w0 = np.array(ext.cond.w0, dtype=np.float64, copy=True)
         w0[:m, 0] = np.maximum(w0[:m, 0], 0.0)
-        state = unloaded_state(dataclasses.replace(ext.cond, w0=w0), contact)
-        forces = face_normal_forces(ext.cond, np.asarray(state.p)).values()
+        unloaded = dataclasses.replace(ext.cond, w0=w0)
+        state = unloaded_state(faces_only(unloaded) if pin_centred else unloaded, contact)
+        p = np.zeros((len(ext.cond.geo.slave), 3))
+        p[ext.extra if pin_centred else slice(None)] = state.p
+        forces = face_normal_forces(ext.cond, p).values()
         n_unit = float(np.mean(list(forces)))
         if not n_unit > 0.0:
             raise MeshQualityError(
@@ -321,6 +353,7 @@ def clamped_faces(
     clamp_force_n: float,
     contact: ContactSettings,
     radius_ratio: float = FOOTPRINT_RADIUS_RATIO,
+    pin_centred: bool = False,
 ) -> ClampedFaces:
     """Add the tang faces, pressed onto the clevis arms by an axial clamp, to a configuration.
 
@@ -332,14 +365,17 @@ def clamped_faces(
     force per face N₁ (mean of the two faces), and the problem being homogeneous,
     ``δ_c = 1 µm · clamp / N₁`` exactly. Other overlaps of ``cond`` (an interference) are
     left out of that solve, or it would not be homogeneous: ``clamp_force_n`` is the
-    clamp without them.
+    clamp without them. With clearance (``pin_centred``) the clamp is set with the pin
+    centred, touching nothing: the solve has the faces alone.
 
     Args:
         system: The factorised hinge.
-        cond: The configuration (zero clearance; its points are pin–hole points).
+        cond: The configuration (its points are pin–hole points).
         clamp_force_n: Axial clamp per face [N], > 0.
         contact: Contact settings of the cycle (μ, tolerance).
         radius_ratio: Footprint outer radius over the hole radius.
+        pin_centred: Calibrate on the faces alone (a touching configuration of a hinge
+            with clearance, ``fe.hinge.freeplay``).
 
     Raises:
         ParameterError: ``clamp_force_n`` ≤ 0.
@@ -349,7 +385,7 @@ def clamped_faces(
     if not clamp_force_n > 0.0:
         raise ParameterError(f"clamp_force_n must be > 0, got {clamp_force_n}")
     t0 = time.perf_counter()
-    ext, n_unit = _calibrated_extension(system, cond, contact, radius_ratio)
+    ext, n_unit = _calibrated_extension(system, cond, contact, radius_ratio, pin_centred)
     m = ext.extra.start
     overlap = CALIBRATION_OVERLAP_MM * clamp_force_n / n_unit
     w0 = np.array(ext.cond.w0, dtype=np.float64, copy=True)

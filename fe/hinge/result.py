@@ -4,7 +4,10 @@ Results are measured on the last closed loop +Fg → −Fg → +Fg:
 
 * ``W_cycle`` — the loop area ∮F dδ [N·mm] (trapezoidal);
 * ``U_max = ½ F_max δ_max`` — the paper's triangle, with δ_max the half peak-to-peak
-  displacement ``(δ(+Fg) − δ(−Fg))/2`` of the loop with the free play removed;
+  displacement ``(δ(+Fg) − δ(−Fg))/2`` of the loop with the free play removed; where
+  clamped faces slide the clevis across the free play (``CycleResult.slides``) the free
+  play is part of the loop (its rectangle is dissipation): W, δ(±Fg), δ_max and η are
+  then those of the loop the grips follow, free play included;
 * ``η = W_cycle / (2π U_max)`` (the paper's Eq. 1);
 * the energy balance: friction (and open/close) work summed over every contact point
   against ``W_cycle − ΔE_elastic``.
@@ -79,6 +82,13 @@ class CycleResult:
             per ball (radial, axial) groove-centre coordinates, then the preload shift σ,
             after the preload (row 0) and after every increment, shape
             (n_increments + 1, 2 n_b + 1) [mm]; None otherwise.
+        slides: Increments that slide the clevis across the free play at the faces'
+            slip force (clamped faces with clearance, ``fe.hinge.freeplay``); empty when
+            the free play is crossed at zero force. When not empty the loop area is taken
+            on the displacement with the free play (the slides are real dissipation).
+        start_disp_mm: δ of the unloaded start in the tension configuration's
+            coordinates [mm]: 0 (the pin pushed there at zero force) or −2Δr (the pin
+            centred, ``fe.hinge.freeplay``).
     """
 
     settings: CycleSettings
@@ -90,6 +100,13 @@ class CycleResult:
     timings_s: dict[str, float] = field(default_factory=dict)
     preload_state: ContactState | None = field(default=None, repr=False)
     ball_coordinates: FloatArray | None = field(default=None, repr=False)
+    slides: tuple[int, ...] = ()
+    start_disp_mm: float = 0.0
+
+    @property
+    def faces_slide(self) -> bool:
+        """True for a cycle whose free play is crossed by sliding clamped faces (``slides``)."""
+        return bool(self.slides) or self.start_disp_mm != 0.0
 
     def loop_arrays(
         self, *, with_free_play: bool = False
@@ -100,7 +117,7 @@ class CycleResult:
             with_free_play: Add back the ±2Δr rigid offsets of the touching configurations.
         """
         F = np.array([0.0] + [i.force_n for i in self.increments])
-        d = np.array([0.0] + [i.disp_mm for i in self.increments])
+        d = np.array([self.start_disp_mm] + [i.disp_mm for i in self.increments])
         if with_free_play:
             side = np.array([1] + [i.side for i in self.increments])
             d = d + side * self.free_play_mm / 2
@@ -112,16 +129,18 @@ class CycleResult:
 
         The path starts where the grips start, with the pin centred in its holes (δ = 0),
         and crosses the first 2Δr to the tension touching configuration at zero force. Where
-        the pin changes sides (at F = 0) the free play is crossed at zero force, so a point
+        the pin changes sides at F = 0 the free play is crossed at zero force, so a point
         at F = 0 in the new touching configuration is inserted; without it a loop area
-        would count a spurious F·4Δr trapezoid.
+        would count a spurious F·4Δr trapezoid. Where clamped faces hold the clevis
+        (``slides``) the pin changes sides at the faces' slip force instead: the slide
+        increment is the crossing, and the path starts with the pin centred.
         """
         F, d, _ = self.loop_arrays(with_free_play=True)
         side = np.array([1] + [i.side for i in self.increments])
         F_out, d_out = ([0.0], [0.0]) if d[0] != 0.0 else ([], [])
         F_out, d_out = [*F_out, F[0]], [*d_out, d[0]]
         for k in range(1, len(F)):
-            if side[k] != side[k - 1]:
+            if side[k] != side[k - 1] and k - 1 not in self.slides:
                 F_out.append(0.0)
                 d_out.append(side[k] * self.free_play_mm / 2)
             F_out.append(F[k])
@@ -141,7 +160,7 @@ class CycleResult:
         Trapezoidal, with the cubic Hermite correction on increments whose ends both carry
         a tangent stiffness (``Increment.stiffness_n_per_mm``).
         """
-        F, d, _ = self.loop_arrays()
+        F, d, _ = self.loop_arrays(with_free_play=self.faces_slide)
         k = np.array([math.nan] + [i.stiffness_n_per_mm for i in self.increments])
         sl = loop or self.last_loop()
         f, x, k = F[sl], d[sl], k[sl]
@@ -151,7 +170,7 @@ class CycleResult:
 
     def metrics(self) -> dict[str, float]:
         """Return η, W_cycle, U_max, peak displacements, stiffness and the energy balance."""
-        F, d, _ = self.loop_arrays()
+        F, d, _ = self.loop_arrays(with_free_play=self.faces_slide)
         sl = self.last_loop()
         f, x = F[sl], d[sl]
         i_min = int(np.argmin(f))

@@ -60,6 +60,8 @@ class ResultStore:
             "clearance_mm": result.clearance_mm,
             "free_play_mm": result.free_play_mm,
             "timings_s": result.timings_s,
+            "slides": list(result.slides),
+            "start_disp_mm": result.start_disp_mm,
         }
         arrays = {
             "meta": np.array(json.dumps(meta)),
@@ -141,4 +143,6 @@ class ResultStore:
             timings_s={k: float(v) for k, v in meta["timings_s"].items()},
             preload_state=preload,
             ball_coordinates=balls,
+            slides=tuple(int(k) for k in meta.get("slides", ())),
+            start_disp_mm=float(meta.get("start_disp_mm", 0.0)),
         )

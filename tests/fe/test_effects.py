@@ -264,15 +264,6 @@ def test_face_friction_without_friction_makes_no_loop(tight, base_tight):
     assert r.metrics()["eta"] < 0.1 * base_tight.metrics()["eta"]  # open/close work only
 
 
-def test_face_friction_refused_with_clearance(loose):
-    system, configs = loose
-    with pytest.raises(
-        ParameterError,
-        match=r"effects.face_friction.clamp_force_n = 300 N .* clearance_mm must be 0",
-    ):
-        run_cycle_with_effects(system, 0.1, settings(), _strength("face_friction"), configs=configs)
-
-
 @pytest.mark.parametrize(
     ("effects", "match"),
     [

@@ -1,0 +1,446 @@
+"""The cycle of a hinge with clearance and clamped faces: the free play crossed by sliding.
+
+With clearance and the clevis arms clamped onto the tang (``fe.hinge.faces``), the pin is
+not the only load path: while the faces stick they hold the clevis wherever it is in the
+free play. The pin changes sides only when the faces let go, at the force ``F_slide``
+where every face point slips (about ``μ`` times the clamp on both faces); then the clevis
+slides rigidly across the free play at that force until the pin touches the other side.
+The loop therefore crosses the free play at ``F = ±F_slide``, not at 0, and the crossing
+is a rectangle of area ``F_slide × travel``: real dissipation at the faces.
+
+How it is computed (``run_sliding``), with the two touching configurations of
+``fe.hinge.cycle.configurations`` (the clevis at ``±2Δr`` from the tang, the pin at ``±Δr``):
+
+* **start**: the pin centred in its holes, the clevis centred (``δ = −2Δr`` in the
+  tension configuration's coordinates), nothing touching; the clamp is applied with the
+  first load increment, as at Δr = 0.
+* **force control** (``fe.hinge.cycle._advance``) in the current configuration while the
+  target is within what the faces hold, or on the side where the pin is engaged; the pin
+  may open and float (``p = 0`` on all its points), the faces then carry the load alone.
+* **approach**: when a target lies beyond ``F_slide`` on the side where the pin is not
+  engaged, force control goes to ``(1 − APPROACH_MARGIN) F_slide``, then the grip is
+  moved (displacement control, pin included) in doubling steps until every face point
+  slips and the pin is open: the faces' limit load, reached without a limit point.
+* **slide**: the face points are tang nodes against the arm's plane, so crossing the free
+  play is a pure tangential shift of their reference: the state is carried into the
+  other configuration unchanged (forces, relative displacement; the grip coordinate
+  shifted by ``(s_old − s_new)·2Δr``, so the machine displacement ``δ + s·2Δr`` is
+  continuous). Where the pin first touches in the new configuration is a linear program
+  (the grip's extreme position, over the pin's rigid positions, with every pin gap ≥ 0
+  under the faces' sliding forces, ``engagement``). The slide is then one
+  displacement-controlled increment of the faces alone (the pin carries nothing) to that
+  position: the friction work of that increment is the rectangle.
+* **force control** in the new configuration from there.
+
+Every recorded step is one increment of the linear contact problem, so the trapezoidal
+energy identity of ``fe.contact`` holds step by step and the loop area (with the free
+play, ``CycleResult.machine_path``) equals the friction work of pin and face points. The
+approximation: the face points keep their master facets over the slide (the arm's
+compliance is taken at the tang node's centred position; the travel is 4Δr, small against
+the footprint).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import linprog
+
+from cad.errors import ConvergenceError
+from fe.contact import (
+    ContactSettings,
+    ContactState,
+    ContactStatus,
+    IncrementResult,
+    solve_increment,
+)
+from fe.hinge.condensed import Condensed
+from fe.hinge.cycle import _advance, _check_window, _record
+from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
+from fe.hinge.result import CycleResult, Increment
+from fe.hinge.system import GRIP, N_PIN_MODES, N_RIGID, HingeSystem
+
+FloatArray = npt.NDArray[np.float64]
+
+APPROACH_MARGIN = 0.05
+"""Force control stops this fraction below ``F_slide`` before the grip is moved instead."""
+
+FIRST_APPROACH_STEP_MM = 2e-5
+"""First grip step of the approach [mm] (the faces' elastic travel to full slip is ~0.1–1 µm)."""
+
+FREE_PIN_TOL = 1e-9
+"""The pin is free (carries nothing) when its contact forces sum to at most this × Fg."""
+
+MAX_APPROACH_STEPS = 40
+"""Doublings of the grip step before the faces must be in full slip."""
+
+
+def face_mask(cond: Condensed) -> npt.NDArray[np.bool_]:
+    """True for the face points of a configuration (``fe.hinge.faces.FACE_PAIR_CODE`` < 0)."""
+    return np.asarray(cond.geo.pair) < 0
+
+
+def has_faces(cond: Condensed) -> bool:
+    """True if the configuration has face points."""
+    return bool(np.any(face_mask(cond)))
+
+
+def _rows(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.int64]:
+    idx = np.flatnonzero(mask)
+    return (3 * idx[:, None] + np.arange(3)).ravel().astype(np.int64)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Step:
+    """A converged step: the full state of its configuration and the works of the step."""
+
+    state: ContactState
+    friction_work: float
+    normal_work: float
+    iterations: int
+    n_counts: tuple[int, int, int]
+
+
+def _consistent(cond: Condensed, p: FloatArray, alpha: FloatArray) -> FloatArray:
+    """``w = W p + G α + w0``, shape (m, 3)."""
+    w = cond.W @ np.ravel(p) + cond.G @ alpha
+    return np.asarray(w.reshape(-1, 3) + np.asarray(cond.w0), dtype=np.float64)
+
+
+def _counts(status: npt.NDArray[np.int8]) -> tuple[int, int, int]:
+    return (
+        int(np.sum(status == ContactStatus.OPEN)),
+        int(np.sum(status == ContactStatus.STICK)),
+        int(np.sum(status == ContactStatus.SLIP)),
+    )
+
+
+def _displaced(
+    cond: Condensed,
+    state: ContactState,
+    delta_mm: float,
+    contact: ContactSettings,
+    mask: npt.NDArray[np.bool_] | None,
+    index: int,
+) -> _Step:
+    """One displacement-controlled increment: the grip moved to ``delta_mm``.
+
+    ``mask`` None: every point, the pin's six modes free (``Gᵀp = 0`` on them); else only
+    the masked points (faces), which the pin modes do not move. Returns the full state
+    (points outside the mask keep ``p = 0`` and get consistent ``w``).
+    """
+    m = len(cond.geo.slave)
+    sel = np.ones(m, dtype=bool) if mask is None else mask
+    rows = _rows(sel)
+    W = np.asarray(cond.W)[np.ix_(rows, rows)]
+    G = np.asarray(cond.G)[rows]
+    k = N_PIN_MODES if mask is None else 0
+    w_free = (np.asarray(cond.w0)[sel].ravel() + G[:, GRIP] * delta_mm).reshape(-1, 3)
+    prev = ContactState(
+        np.asarray(state.p)[sel],
+        np.asarray(state.w)[sel],
+        np.asarray(state.status)[sel],
+        np.asarray(state.alpha)[:k],
+    )
+    res = solve_increment(W, w_free, prev, contact, G=G[:, :k], e=np.zeros(k), increment=index)
+    p = np.zeros((m, 3))
+    p[sel] = res.state.p
+    alpha = np.array(state.alpha, dtype=np.float64, copy=True)
+    alpha[:k] = res.state.alpha
+    alpha[GRIP] = delta_mm
+    w = _consistent(cond, p, alpha)
+    w[sel] = res.state.w  # the solver's own (exact) w of the solved points
+    status = np.zeros(m, dtype=np.int8)
+    status[sel] = res.state.status
+    return _Step(
+        ContactState(p, w, status, alpha),
+        float(np.sum(res.friction_work)),
+        float(np.sum(res.normal_work)),
+        res.iterations,
+        _counts(status),
+    )
+
+
+def slide_force(cond: Condensed, contact: ContactSettings, direction: int) -> float:
+    """Force the faces hold before they slide, ``F_slide`` [N] (> 0), for a grip moving ``direction``.
+
+    The faces alone (the pin open), clamped from the open state and slid by a travel far
+    larger than their elastic displacements, so every point slips along x: the grip force
+    of that state is ``μ Σ p_n`` of the faces at full slip.
+    """
+    faces = face_mask(cond)
+    travel = 1.0  # [mm]: thousands of times the faces' elastic displacement
+    start = ContactState.initial(
+        len(cond.geo.slave),
+        N_RIGID,
+        w=_consistent(cond, np.zeros((len(cond.geo.slave), 3)), np.zeros(N_RIGID)),
+    )
+    step = _displaced(cond, start, direction * travel, contact, faces, 0)
+    return abs(float(-np.asarray(cond.G)[:, GRIP] @ np.ravel(step.state.p)))
+
+
+def engagement(cond: Condensed, p: FloatArray, direction: int) -> tuple[float, FloatArray]:
+    """Where the pin first touches as the clevis slides ``direction``: (δ [mm], pin modes (6,)).
+
+    The pin carries nothing (``p`` is zero on its points); its gaps under the faces' forces
+    ``p`` are ``g = (W p + w0)_n + G_pin α + G_δ δ``. The first touch is the extreme
+    ``direction · δ`` for which some pin position keeps every gap ≥ 0 (a linear program).
+    """
+    pin = ~face_mask(cond)
+    rows_n = 3 * np.flatnonzero(pin)
+    base = (np.asarray(cond.W)[rows_n] @ np.ravel(p)) + np.asarray(cond.w0)[pin, 0]
+    A = np.asarray(cond.G)[rows_n][:, : N_PIN_MODES + 1]
+    c = np.zeros(N_PIN_MODES + 1)
+    c[GRIP] = -float(direction)
+    bounds = [(-1.0, 1.0)] * (N_PIN_MODES + 1)
+    bounds[2] = bounds[5] = (0.0, 0.0)  # axial slide and spin of the pin: no gap changes
+    lp = linprog(c, A_ub=-A, b_ub=base, bounds=bounds, method="highs")
+    if lp.status != 0:
+        raise ConvergenceError(
+            f"pin engagement: linear program failed ({lp.message})",
+            increment=0,
+            iteration=0,
+            residual=float("nan"),
+        )
+    x = np.asarray(lp.x, dtype=np.float64)
+    return float(x[GRIP]), x[:N_PIN_MODES]
+
+
+def _switched(old: Condensed, new: Condensed, state: ContactState, shift_mm: float) -> ContactState:
+    """The state carried into another configuration: faces as they are, pin points open.
+
+    ``shift_mm`` is added to the grip coordinate (``(s_old − s_new)·2Δr``); the pin's modes
+    stay (it carries nothing). The face points' relative displacement moves with the grip.
+    """
+    fo, fn = face_mask(old), face_mask(new)
+    m = len(new.geo.slave)
+    p = np.zeros((m, 3))
+    p[fn] = np.asarray(state.p)[fo]
+    alpha = np.array(state.alpha, dtype=np.float64, copy=True)
+    alpha[GRIP] += shift_mm
+    w = _consistent(new, p, alpha)
+    G_f = np.asarray(new.G)[_rows(fn), GRIP].reshape(-1, 3)
+    w[fn] = np.asarray(state.w)[fo] + G_f * shift_mm  # the old w moved rigidly
+    status = np.zeros(m, dtype=np.int8)
+    status[fn] = np.asarray(state.status)[fo]
+    return ContactState(p, w, status, alpha)
+
+
+def _forced(
+    cond: Condensed,
+    state: ContactState,
+    f_from: float,
+    f_to: float,
+    contact: ContactSettings,
+    settings: CycleSettings,
+    index: int,
+    partial: Callable[[], CycleResult],
+    previous: tuple[float, ContactState] | None,
+) -> list[tuple[float, ContactState, IncrementResult]]:
+    """Force control from ``f_from`` to ``f_to`` (``fe.hinge.cycle._advance``), every sub-step kept.
+
+    A cut-back's sub-steps are returned (and recorded) one by one, so the loop has their
+    points and its trapezoidal area matches their works exactly.
+    """
+
+    def attempt(n_sub: int) -> list[tuple[float, ContactState, IncrementResult]]:
+        out: list[tuple[float, ContactState, IncrementResult]] = []
+        st, f0, prev = state, f_from, previous
+        for k in range(1, n_sub + 1):
+            f = f_from + (f_to - f_from) * k / n_sub
+            new, res = _advance(
+                cond, st, f0, f, contact, dataclasses.replace(settings, max_cutbacks=0),
+                index + len(out), partial, prev,
+            )  # fmt: skip
+            out.append((f, new, res))
+            st, f0, prev = new, f, (f0, st)
+        return out
+
+    what = f"increment {index} (F {f_from:.4g} → {f_to:.4g} N)"
+    return with_cutbacks(
+        attempt, settings.max_cutbacks, increment=index, what=what, partial=partial
+    )
+
+
+def _approach(
+    cond: Condensed,
+    state: ContactState,
+    direction: int,
+    contact: ContactSettings,
+    settings: CycleSettings,
+    index: int,
+    partial: Callable[[], CycleResult],
+) -> list[_Step]:
+    """Move the grip in doubling steps until no face point sticks and the pin is free.
+
+    Displacement control has no limit point, so the faces' limit load (where they let go)
+    is reached without the force-controlled solve failing at it. Returns every step.
+    """
+    faces = face_mask(cond)
+    steps: list[_Step] = []
+    step_mm = FIRST_APPROACH_STEP_MM
+    for _ in range(MAX_APPROACH_STEPS):
+        start = state
+        to = float(start.alpha[GRIP]) + direction * step_mm
+        idx = index + len(steps)
+
+        def attempt(n_sub: int, st: ContactState = start, to: float = to, idx: int = idx) -> _Step:
+            a0 = float(st.alpha[GRIP])
+            works, iters = np.zeros(2), 0
+            for k in range(1, n_sub + 1):
+                r = _displaced(cond, st, a0 + (to - a0) * k / n_sub, contact, None, idx)
+                works += (r.friction_work, r.normal_work)
+                iters += r.iterations
+                st = r.state
+            return _Step(st, float(works[0]), float(works[1]), iters, _counts(st.status))
+
+        what = f"approach {idx} (δ → {to:.6g} mm)"
+        step = with_cutbacks(
+            attempt, settings.max_cutbacks, increment=idx, what=what, partial=partial
+        )
+        steps.append(step)
+        state = step.state
+        status = np.asarray(state.status)
+        pin_load = float(np.abs(np.asarray(state.p)[~faces]).sum())
+        if (
+            np.all(status[faces] != ContactStatus.STICK)
+            and np.any(status[faces] == ContactStatus.SLIP)
+            and pin_load <= FREE_PIN_TOL * settings.amplitude_n
+        ):
+            return steps
+        step_mm *= 2.0
+    raise ConvergenceError(
+        f"the faces did not reach full slip after {MAX_APPROACH_STEPS} grip steps",
+        increment=index + len(steps),
+        iteration=0,
+        residual=float("nan"),
+        partial=partial(),
+    )
+
+
+def _slide(
+    old: Condensed,
+    new: Condensed,
+    state: ContactState,
+    shift_mm: float,
+    direction: int,
+    contact: ContactSettings,
+    index: int,
+) -> _Step:
+    """Carry the free state into ``new`` and slide the faces to where the pin first touches.
+
+    One displacement-controlled increment of the faces alone (the pin carries nothing);
+    the pin is placed where the linear program of ``engagement`` puts it.
+    """
+    carried = _switched(old, new, state, shift_mm)
+    fn = face_mask(new)
+    trial = _displaced(new, carried, 0.0, contact, fn, index)  # the faces' sliding forces
+    delta_e, pin_modes = engagement(new, np.asarray(trial.state.p), direction)
+    slid = _displaced(new, carried, delta_e, contact, fn, index)
+    alpha = np.array(slid.state.alpha, dtype=np.float64, copy=True)
+    alpha[:N_PIN_MODES] = pin_modes
+    p = np.asarray(slid.state.p)
+    w = _consistent(new, p, alpha)
+    w[fn] = np.asarray(slid.state.w)[fn]
+    return dataclasses.replace(slid, state=ContactState(p, w, slid.state.status, alpha))
+
+
+def run_sliding(
+    system: HingeSystem,
+    clearance_mm: float,
+    settings: CycleSettings,
+    configs: dict[int, Condensed],
+    progress: Callable[[int, int], None] | None,
+) -> CycleResult:
+    """Run the cycle of a hinge with clearance and clamped faces (module docstring)."""
+    contact = ContactSettings(mu=settings.mu, tol=settings.tol, max_iter=settings.max_iter)
+    half = 2.0 * clearance_mm  # the clevis' offset of each touching configuration
+    f_slide = {d: slide_force(configs[d], contact, d) for d in (1, -1)}
+    side, engaged = 1, 0  # coordinates of the tension configuration; the pin centred
+    cond = configs[side]
+    m = len(cond.geo.slave)
+    alpha0 = np.zeros(N_RIGID)
+    alpha0[0], alpha0[GRIP] = -0.5 * half, -half  # pin and clevis centred
+    p0 = np.zeros((m, 3))
+    state = ContactState(p0, _consistent(cond, p0, alpha0), np.zeros(m, dtype=np.int8), alpha0)
+    incs: list[Increment] = []
+    states: list[ContactState] = []
+    slides: list[int] = []
+    total = sum(n for _, _, n in settings.stages())
+    t1 = time.perf_counter()
+
+    def partial() -> CycleResult:
+        return CycleResult(
+            settings,
+            clearance_mm,
+            tuple(incs),
+            4 * clearance_mm,
+            tuple(states),
+            configs,
+            {},
+            slides=tuple(slides),
+            start_disp_mm=-half,
+        )
+
+    def keep(stage: int, s: int, step: _Step) -> float:
+        """Record a step of this module; return its force."""
+        p = np.ravel(step.state.p)
+        f = float(-np.asarray(configs[s].G)[:, GRIP] @ p)
+        incs.append(
+            Increment(
+                stage=stage,
+                force_n=f,
+                disp_mm=float(step.state.alpha[GRIP]),
+                side=s,
+                iterations=step.iterations,
+                n_open=step.n_counts[0],
+                n_stick=step.n_counts[1],
+                n_slip=step.n_counts[2],
+                friction_work=step.friction_work,
+                normal_work=step.normal_work,
+                elastic_energy=0.5 * float(p @ (configs[s].W @ p)),
+            )
+        )
+        states.append(step.state)
+        return f
+
+    f_prev = 0.0
+    peaks: list[int] = []
+    for stage, (f_from, f_to, n) in enumerate(settings.stages()):
+        previous: tuple[float, ContactState] | None = None
+        for target in stage_targets(f_from, f_to, n, settings.grading):
+            d = 1 if target > 0 else -1
+            if d != engaged and abs(target) > f_slide[d]:  # the faces let go: slide
+                f_a = d * (1.0 - APPROACH_MARGIN) * f_slide[d]
+                if d * f_prev < abs(f_a):
+                    for f, new, res in _forced(
+                        cond, state, f_prev, f_a, contact, settings, len(incs), partial, previous
+                    ):
+                        incs.append(_record(stage, f, side, res, cond))
+                        states.append(new)
+                    state = new
+                for step in _approach(cond, state, d, contact, settings, len(incs), partial):
+                    f_prev = keep(stage, side, step)
+                    state = step.state
+                step = _slide(cond, configs[d], state, (side - d) * half, d, contact, len(incs))
+                side, engaged, cond = d, d, configs[d]
+                slides.append(len(incs))
+                f_prev, state, previous = keep(stage, side, step), step.state, None
+            for f, new, res in _forced(
+                cond, state, f_prev, float(target), contact, settings, len(incs), partial, previous
+            ):
+                incs.append(_record(stage, f, side, res, cond))
+                states.append(new)
+            previous, state, f_prev = (f_prev, state), new, float(target)
+            if target == f_to:
+                peaks.append(len(incs) - 1)
+            if progress is not None:
+                progress(min(len(incs), total), total)
+    result = partial()
+    object.__setattr__(result, "timings_s", {"contact": time.perf_counter() - t1})
+    _check_window(system, result, peaks)
+    return result
