@@ -18,9 +18,13 @@ The step is accepted by a nonmonotone Armijo search on the original merit (the d
 is measured from the largest of the last ``memory`` merits): with many contacts changing
 status at once a monotone search on the nonsmooth merit creeps with steps of 1e-2 and
 less, which a nonmonotone one lets through. A step the search rejects, or a singular
-regularised matrix, multiplies ``boost`` by ``1/shrink`` (a larger ``ε``: a shorter,
-better-conditioned step); an accepted one divides it back towards 1. Every step counts
-as one iteration of the shared ``max_iter`` budget, rejected ones included.
+regularised matrix, multiplies ``boost`` by ``grow`` (a larger ``ε``: a shorter,
+better-conditioned step), and so does an accepted step that raised the merit (without
+that, two steps can bounce between two active sets for ever, each accepted against the
+other's merit: KaplasTower-i1061-4 bounced between ρ 1e-6 and 1e-9 for 40 steps); a step
+that lowered it multiplies ``boost`` by ``relax`` (down to 1). Growing faster than it
+relaxes is the Levenberg–Marquardt trust rule. Every step counts as one iteration of the
+shared ``max_iter`` budget, rejected ones included.
 """
 
 from __future__ import annotations
@@ -60,7 +64,8 @@ def proximal_loop(
         max_iter: Budget of iterations (each one regularised Newton step).
 
     Returns:
-        Where it stopped (``singular`` is False); converged iff ``run.it.rho <= tol``.
+        Where it stopped (``singular`` is False, ``rescues`` counts the rejected steps);
+        converged iff ``run.it.rho <= tol``.
     """
     m = len(it.p)
     scale = np.diagonal(prob.W).reshape(m, 3).mean(axis=1)  # (m,) [mm/N]
@@ -88,11 +93,15 @@ def proximal_loop(
             new = _line_search(prob, it, step, r_base, settings, ref)
         if new is None:  # singular or no acceptable step: regularise more
             rejected += 1
-            boost = min(boost / opts.shrink, boost_max)
+            boost = min(boost * opts.grow, boost_max)
             history.append(it.rho)
             logger.debug("proximal: eps %.1e rejected (singular %s)", eps_rel, step is None)
             continue
-        boost = max(boost * opts.shrink, 1.0)
+        # an accepted step that raised the merit (nonmonotone) damps the next one: else
+        # two steps can bounce between active sets for ever, each accepted against the
+        # other's merit
+        up = new.merit > it.merit
+        boost = min(boost * opts.grow, boost_max) if up else max(boost * opts.relax, 1.0)
         it = new
         merits.append(it.merit)
         history.append(it.rho)

@@ -46,8 +46,9 @@ class ProximalOptions:
         eps_start: Largest relative ``ε`` before boosts (far from the solution).
         eps_min: Smallest relative ``ε`` (keeps the regularised matrix nonsingular).
         eps_max: Largest relative ``ε`` after boosts.
-        shrink: Factor on the boost after an accepted step (its inverse after a rejected
-            step or a singular matrix).
+        grow: Factor on the boost after a rejected step, a singular matrix or an
+            accepted step that raised the merit.
+        relax: Factor on the boost (down to 1) after a step that lowered the merit.
         memory: The line search measures the decrease from the largest of the last
             ``memory`` merits (1: monotone).
     """
@@ -56,7 +57,8 @@ class ProximalOptions:
     eps_start: float = 1e-2
     eps_min: float = 1e-10
     eps_max: float = 1e2
-    shrink: float = 0.1
+    grow: float = 10.0
+    relax: float = 0.3
     memory: int = 10
 
     def __post_init__(self) -> None:
@@ -64,7 +66,8 @@ class ProximalOptions:
         check_range("proximal.eps_min", self.eps_min, 0.0, 1.0, lo_open=True)
         check_range("proximal.eps_start", self.eps_start, self.eps_min, self.eps_max)
         check_range("proximal.eps_max", self.eps_max, self.eps_min, float("inf"), hi_open=True)
-        check_range("proximal.shrink", self.shrink, 0.0, 1.0, lo_open=True, hi_open=True)
+        check_range("proximal.grow", self.grow, 1.0, float("inf"), lo_open=True, hi_open=True)
+        check_range("proximal.relax", self.relax, 0.0, 1.0, lo_open=True, hi_open=True)
         check_range("proximal.memory", self.memory, 1, float("inf"))
 
 
