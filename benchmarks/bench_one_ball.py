@@ -3,6 +3,7 @@
 Usage: OMP_NUM_THREADS=1 HINGELAB_LU_THREADS=1 .venv/bin/python benchmarks/bench_one_ball.py
        [--levels 0 1 2] [--loads 50 100 200]
        [--ball-x X] [--ball-y Y] [--ring-depth D] [--ring-y Y]   (body-size sensitivity)
+       [--curvature-ratio F]                                     (less conformal grooves)
 
 Each mesh level (fe.bearing.one_ball.MESH_LEVELS) runs in a fresh process: mesh,
 assembly, factorisation (PARDISO), normal condensation, then one frictionless solve per
@@ -34,20 +35,27 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from benchmarks._common import print_table, run_isolated
 
 
-def run_level(level: int, loads: tuple[float, ...], sizes: dict[str, float]) -> dict[str, Any]:
+def run_level(
+    level: int, loads: tuple[float, ...], sizes: dict[str, float], ratio: float | None
+) -> dict[str, Any]:
     """Build and solve one level; return its size, timings and per-load rows.
 
-    ``sizes`` overrides body sizes of the level's grid (ball_x, ball_y, ring_depth, ring_y).
+    ``sizes`` overrides body sizes of the level's grid (ball_x, ball_y, ring_depth, ring_y);
+    ``ratio`` (if not None) sets both groove curvature ratios f_i = f_o.
     """
     import dataclasses
 
     from threadpoolctl import threadpool_limits
 
+    from cad.bearing_geometry import BearingHingeParams
     from fe.bearing.one_ball import MESH_LEVELS, build_rig, solve_load
 
+    params = BearingHingeParams()
+    if ratio is not None:
+        params = BearingHingeParams(inner_curvature_ratio=ratio, outer_curvature_ratio=ratio)
     with threadpool_limits(1, user_api="blas"):
         t0 = time.perf_counter()
-        rig = build_rig(dataclasses.replace(MESH_LEVELS[level], **sizes))
+        rig = build_rig(dataclasses.replace(MESH_LEVELS[level], **sizes), params)
         t_build = time.perf_counter() - t0
         rows = []
         for q in loads:
@@ -100,6 +108,7 @@ def main() -> None:
     ap.add_argument("--loads", type=float, nargs="+", default=[50.0, 100.0, 200.0])
     for name in ("ball_x", "ball_y", "ring_depth", "ring_y"):
         ap.add_argument(f"--{name.replace('_', '-')}", type=float, help="override [mm]")
+    ap.add_argument("--curvature-ratio", type=float, help="f_i = f_o (default 0.52/0.53)")
     args = ap.parse_args()
     loads = tuple(args.loads)
     sizes = {
@@ -114,7 +123,7 @@ def main() -> None:
 
     levels, rows, fits = [], [], []
     for level in args.levels:
-        out = run_isolated(run_level, level, loads, sizes)
+        out = run_isolated(run_level, level, loads, sizes, args.curvature_ratio)
         rows.extend(out.pop("rows"))
         levels.append(out)
         for race in ("inner", "outer"):
@@ -137,6 +146,8 @@ def main() -> None:
                 )
     if sizes:
         print(f"Body sizes overridden [mm]: {sizes}")
+    if args.curvature_ratio is not None:
+        print(f"Groove curvature ratios f_i = f_o = {args.curvature_ratio:g}")
     print("Mesh levels (wall = mesh + assembly + factorisation + condensation + all solves)")
     print_table(
         levels,
