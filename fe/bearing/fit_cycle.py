@@ -124,13 +124,14 @@ def solve_fit_increment(
         f, _, _, H = _ball(system, v, sigma, reg)
         dH = H - system.H_ref
         M = np.eye(n2) + system.W_b @ dH
-        N = dH @ np.linalg.inv(M)
+        N = dH @ np.linalg.inv(M)  # = (dH⁻¹ + W_b)⁻¹: symmetric (push-through identity)
         c = f - system.H_ref @ v - dH @ v
-        W_eff = system.W_c - system.X @ N @ system.X.T
+        # W_eff = W_c − X N Xᵀ with one (3m)² temporary: W_c is symmetric (built so) and
+        # N is symmetrised at its size (2 n_b)², so W_eff is symmetric to round-off
+        W_eff = (system.X @ (0.5 * (N + N.T))) @ system.X.T
+        np.subtract(system.W_c, W_eff, out=W_eff)
         w_free = w0 - (system.X @ (c - N @ (system.W_b @ c))).reshape(m, 3)
-        res = _solve_contact(
-            0.5 * (W_eff + W_eff.T), w_free, state_prev, contact, G, e, increment, start
-        )
+        res = _solve_contact(W_eff, w_free, state_prev, contact, G, e, increment, start)
         p = np.ravel(res.state.p)
         v_new = np.linalg.solve(M, system.X.T @ p - system.W_b @ c)
         step = float(np.abs(v_new - v).max())
