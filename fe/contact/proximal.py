@@ -19,11 +19,11 @@ is measured from the largest of the last ``memory`` merits): with many contacts 
 status at once a monotone search on the nonsmooth merit creeps with steps of 1e-2 and
 less, which a nonmonotone one lets through. A step the search rejects, or a singular
 regularised matrix, multiplies ``boost`` by ``grow`` (a larger ``ε``: a shorter,
-better-conditioned step), and so does an accepted step that raised the merit (without
-that, two steps can bounce between two active sets for ever, each accepted against the
-other's merit: KaplasTower-i1061-4 bounced between ρ 1e-6 and 1e-9 for 40 steps); a step
-that lowered it multiplies ``boost`` by ``relax`` (down to 1). Growing faster than it
-relaxes is the Levenberg–Marquardt trust rule. Every step counts as one iteration of the
+better-conditioned step), and so does an accepted step that raised the merit more than
+``bounce``-fold (without that, two steps can bounce between two active sets for ever,
+each accepted against the other's merit: KaplasTower-i1061-4 bounced between ρ 1e-6 and
+1e-9 for 40 steps); any other accepted step multiplies ``boost`` by ``relax`` (down to
+1). Growing faster than it relaxes is the Levenberg–Marquardt trust rule. Every step counts as one iteration of the
 shared ``max_iter`` budget, rejected ones included.
 """
 
@@ -97,10 +97,11 @@ def proximal_loop(
             history.append(it.rho)
             logger.debug("proximal: eps %.1e rejected (singular %s)", eps_rel, step is None)
             continue
-        # an accepted step that raised the merit (nonmonotone) damps the next one: else
-        # two steps can bounce between active sets for ever, each accepted against the
-        # other's merit
-        up = new.merit > it.merit
+        # an accepted step that raised the merit a lot (nonmonotone) damps the next one:
+        # else two steps can bounce between active sets for ever, each accepted against
+        # the other's merit; small rises are let through (growing ε on them stalls a slow
+        # final approach at an ε far above rate·ρ)
+        up = new.merit > opts.bounce * it.merit
         boost = min(boost * opts.grow, boost_max) if up else max(boost * opts.relax, 1.0)
         it = new
         merits.append(it.merit)

@@ -46,9 +46,10 @@ class ProximalOptions:
         eps_start: Largest relative ``ε`` before boosts (far from the solution).
         eps_min: Smallest relative ``ε`` (keeps the regularised matrix nonsingular).
         eps_max: Largest relative ``ε`` after boosts.
-        grow: Factor on the boost after a rejected step, a singular matrix or an
-            accepted step that raised the merit.
-        relax: Factor on the boost (down to 1) after a step that lowered the merit.
+        grow: Factor on the boost after a rejected step, a singular matrix or a bounce.
+        relax: Factor on the boost (down to 1) after any other accepted step.
+        bounce: An accepted step that multiplies the merit by more than this is a bounce
+            (nonmonotone acceptance; ρ grew more than ``√bounce``-fold).
         memory: The line search measures the decrease from the largest of the last
             ``memory`` merits (1: monotone).
     """
@@ -59,6 +60,7 @@ class ProximalOptions:
     eps_max: float = 1e2
     grow: float = 10.0
     relax: float = 0.3
+    bounce: float = 4.0
     memory: int = 10
 
     def __post_init__(self) -> None:
@@ -68,6 +70,7 @@ class ProximalOptions:
         check_range("proximal.eps_max", self.eps_max, self.eps_min, float("inf"), hi_open=True)
         check_range("proximal.grow", self.grow, 1.0, float("inf"), lo_open=True, hi_open=True)
         check_range("proximal.relax", self.relax, 0.0, 1.0, lo_open=True, hi_open=True)
+        check_range("proximal.bounce", self.bounce, 1.0, float("inf"), hi_open=True)
         check_range("proximal.memory", self.memory, 1, float("inf"))
 
 
