@@ -23,8 +23,8 @@ better-conditioned step), and so does an accepted step that raised the merit mor
 ``bounce``-fold (without that, two steps can bounce between two active sets for ever,
 each accepted against the other's merit: KaplasTower-i1061-4 bounced between ρ 1e-6 and
 1e-9 for 40 steps); any other accepted step multiplies ``boost`` by ``relax`` (down to
-1). Growing faster than it relaxes is the Levenberg–Marquardt trust rule. Every step counts as one iteration of the
-shared ``max_iter`` budget, rejected ones included.
+1). Growing faster than it relaxes is the Levenberg–Marquardt trust rule. Every step
+counts as one iteration of the shared ``max_iter`` budget, rejected ones included.
 """
 
 from __future__ import annotations
