@@ -122,8 +122,12 @@ def run(args: argparse.Namespace) -> int:
             + ("" if isinstance(system, BearingSystem) else f", μ = {settings.mu:g}"),
         )
     )
-    if args.frames and not isinstance(system, FitSystem):  # fits: no field recovery yet
-        if isinstance(system, BearingSystem):
+    if args.frames:
+        if isinstance(system, FitSystem):
+            from fe.bearing.report import write_fit_series
+
+            pvd = write_fit_series(system, result, args.out / "fields", every=args.frames)
+        elif isinstance(system, BearingSystem):
             from fe.bearing.report import write_bearing_series
 
             pvd = write_bearing_series(system, result, args.out / "fields", every=args.frames)
@@ -145,7 +149,7 @@ def run(args: argparse.Namespace) -> int:
             f"{summary['energy_balance_rel_err']:.1e}   (bearing hinge, frictional fits)   "
             f"{summary['wall_s']:.1f} s"
         )
-        print(f"results in {args.out}/ (loop.csv, loop.png, result.json, mesh files)")
+        print(f"results in {args.out}/ (loop.csv, loop.png, result.json, fields/, mesh files)")
     elif isinstance(system, BearingSystem):
         pre = summary["preload_step"]
         print(

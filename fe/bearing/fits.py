@@ -96,6 +96,19 @@ class FitSystem(BallCounts):
         H_ref: Reference ball stiffness in the factorisation, shape (2 n_b, 2 n_b) [N/mm].
         G: Contact rows of the rigid amplitudes, shape (3m, N_RIGID) [mm per unit α].
         preload_shift: Ball coordinates per unit preload shift σ, shape (2 n_b,).
+        C: Contact rows on the independent DOFs, shape (3m, n_ind): ``C u_ind`` is the
+            relative displacement (slave − master) of the points in their frames [mm].
+        Bt: Ball rows on the independent DOFs, shape (2 n_b, n_ind): the balls' (radial,
+            axial) coordinates ``v = Bt u_ind`` [mm].
+        free: Free independent DOFs (not fixed, gripped or a rigid-mode support).
+        factor: Factorisation of ``K0 = Tᵀ K T + Btᵀ H_ref Bt`` on ``free``, kept for the
+            field recovery (``displacement``). It exists during the build anyway, so
+            keeping it adds no peak memory, but it stays alive with the system (as
+            ``BearingSystem.factor``): on the coarse mesh (120k DOF, PARDISO) it holds
+            ~380 MB resident (PARDISO reports 354 MB of numeric factor), growing with the
+            factor's fill on finer meshes; ``fields`` adds 8 n_dof floats (7.7 MB there).
+        fields: Unit fields of the rigid amplitudes (pin modes, ring spin, grip) on all
+            DOFs, shape (n_dof, N_RIGID) [mm per unit α], ``C`` of them is ``G``.
         timings_s: Wall times [s].
     """
 
@@ -110,12 +123,65 @@ class FitSystem(BallCounts):
     H_ref: FloatArray
     G: FloatArray
     preload_shift: FloatArray
+    C: sp.csr_matrix
+    Bt: sp.csr_matrix
+    free: IntArray
+    factor: Factorization
+    fields: FloatArray
     timings_s: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_points(self) -> int:
         """Contact points of the fits."""
         return len(self.geo.slave)
+
+    def ball_residual(self, v: FloatArray, sigma: FloatArray) -> FloatArray:
+        """``r_b = f(v + σ s) − H_ref v``: the balls' force beyond the factorised reference.
+
+        Args:
+            v: Ball coordinates (radial, axial per ball), shape (2 n_b, k) [mm].
+            sigma: Preload shift per column, shape (k,) [mm].
+
+        Returns:
+            Shape (2 n_b, k) [N]; ``f`` is the Hertz force on the inner rings (∂E/∂v).
+        """
+        from fe.bearing.cycle import ball_law
+
+        shifted = v + np.outer(self.preload_shift, sigma)
+        f = np.column_stack(
+            [
+                ball_law(self.balls.d0, shifted[:, j].reshape(-1, 2), self.balls.k_n)[0].ravel()
+                for j in range(v.shape[1])
+            ]
+        )
+        return np.asarray(f - self.H_ref @ v)
+
+    def displacement(
+        self, p: FloatArray, v: FloatArray, alpha: FloatArray, sigma: FloatArray
+    ) -> FloatArray:
+        """Nodal displacement of converged states, shape (n_dof, k) [mm].
+
+        The structure's equilibrium on the independent DOFs, with the reference ball
+        stiffness in ``K0`` and the rest of the ball force as a load::
+
+            K0 u = Cᵀ p − Btᵀ r_b,   r_b = f(v + σ s) − H_ref v,   u += fields α
+
+        (the contact forces ``p`` act on the slaves, ``−p`` on the masters; the balls push
+        the inner rings by ``−f`` and the outer ones by ``+f``), so that ``C u = W_c p −
+        X r_b + G α`` is the relative displacement ``w − w0`` of ``fe.bearing.fit_cycle``
+        and ``Bt u = Xᵀ p − W_b r_b`` is ``v`` where the balls are in equilibrium.
+
+        Args:
+            p: Contact forces, shape (3m, k) [N], node-major (n, t1, t2) per point.
+            v: Ball coordinates, shape (2 n_b, k) [mm].
+            alpha: Rigid amplitudes, shape (N_RIGID, k) [mm or rad].
+            sigma: Preload shift σ, shape (k,) [mm].
+        """
+        p = np.asarray(p, dtype=np.float64)
+        f_ind = self.C.T @ p - self.Bt.T @ self.ball_residual(v, np.asarray(sigma, dtype=float))
+        u_ind = np.zeros((self.C.shape[1], p.shape[1]))
+        u_ind[self.free] = self.factor.solve(f_ind[self.free]).reshape(len(self.free), -1)
+        return np.asarray(self.ties.T @ u_ind + self.fields @ alpha)
 
 
 def reference_stiffness(balls: BallLines, load_n: float = REF_BALL_LOAD_N) -> FloatArray:
@@ -192,8 +258,11 @@ def build_fit_system(
     fields[dofs_of(rings), RING_SPIN] = spin.ravel()
     fields[:, GRIP] = unit_field(ties, K0, factor, free, pos[3 * grip])
     # fields on the independent DOFs (tied nodes follow their masters)
-    G = np.column_stack([C @ fields[ties.independent, j] for j in range(N_RIGID)])
-    Gb = np.column_stack([Bt @ fields[ties.independent, j] for j in range(N_RIGID)])
+    f_ind = fields[ties.independent]
+    G = np.column_stack([C @ f_ind[:, j] for j in range(N_RIGID)])
+    Gb = np.column_stack([Bt @ f_ind[:, j] for j in range(N_RIGID)])
+    fields = np.asarray(T @ f_ind)  # the same, the tied DOFs following
+    del f_ind
     if np.abs(Gb).max() > 1e-9:
         raise MeshQualityError("a rigid mode of the pin, ring spin or grip moves a ball patch")
     # condensation: one block of right-hand sides at a time
@@ -238,5 +307,10 @@ def build_fit_system(
         H_ref,
         G,
         shift,
+        C[rows_kept],
+        Bt,
+        free,
+        factor,
+        fields,
         t,
     )

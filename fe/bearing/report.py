@@ -8,12 +8,15 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from cad.errors import ParameterError
 from fe.bearing.cycle import ball_law, ball_state_of, contact_angles
+from fe.bearing.fits import FitSystem
 from fe.bearing.system import BearingSystem
 from fe.hinge.report import frames_of, write_series
 from fe.hinge.result import CycleResult
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 
 
 def _peaks(result: CycleResult) -> dict[str, int]:
@@ -98,15 +101,94 @@ def write_bearing_series(
     mesh = system.mesh
     chosen = frames_of(result, every)
     fields = increment_fields(system, result, chosen)
-    patches = []
-    for b, k in zip(system.balls.bearing, system.balls.index, strict=True):
-        nodes = [mesh.set_nodes(f"{race}_ring_{b}_groove_{k}") for race in ("inner", "outer")]
-        patches.append(np.concatenate(nodes))
+    patches = _raceway_patches(system)
 
     def ball_data(k: int) -> dict[str, FloatArray]:
-        load = np.zeros(mesh.n_nodes)
-        for j, nodes in enumerate(patches):
-            load[nodes] = result.states[k].p[j, 0]
-        return {"ball_load": load}
+        return {"ball_load": _on_patches(mesh.n_nodes, patches, result.states[k].p[:, 0])}
 
     return write_series(mesh, result, chosen, fields, ball_data, folder)
+
+
+def _raceway_patches(system: BearingSystem | FitSystem) -> list[IntArray]:
+    """Nodes of each ball's two raceway patches (inner and outer groove), one array per ball."""
+    mesh, balls = system.mesh, system.balls
+    return [
+        np.concatenate(
+            [mesh.set_nodes(f"{race}_ring_{b}_groove_{k}") for race in ("inner", "outer")]
+        )
+        for b, k in zip(balls.bearing, balls.index, strict=True)
+    ]
+
+
+def _on_patches(n_nodes: int, patches: list[IntArray], load_n: FloatArray) -> FloatArray:
+    """Each ball's load on the nodes of its patches, zero elsewhere, shape (n_nodes,) [N]."""
+    out = np.zeros(n_nodes)
+    for j, nodes in enumerate(patches):
+        out[nodes] = load_n[j]
+    return out
+
+
+def fit_fields(system: FitSystem, result: CycleResult, chosen: list[int]) -> FloatArray:
+    """Displacement fields of chosen increments of a fits cycle, shape (k, n_nodes, 3) [mm].
+
+    Raises:
+        ParameterError: If the result carries no ball coordinates (not a fits cycle).
+    """
+    coords = _ball_coordinates(result)[np.asarray(chosen, dtype=np.int64) + 1].T  # row 0: preload
+    p = np.column_stack([np.ravel(result.states[k].p) for k in chosen])
+    alpha = np.column_stack([np.asarray(result.states[k].alpha) for k in chosen])
+    u = system.displacement(p, coords[:-1], alpha, coords[-1])
+    return np.moveaxis(u.reshape(system.mesh.n_nodes, 3, -1), 2, 0)
+
+
+def _ball_coordinates(result: CycleResult) -> FloatArray:
+    if result.ball_coordinates is None:
+        raise ParameterError(
+            "the result has no ball coordinates: not a cycle of the bearing hinge with "
+            "frictional fits (fe.bearing.fit_cycle)"
+        )
+    return np.asarray(result.ball_coordinates, dtype=np.float64)
+
+
+def write_fit_series(
+    system: FitSystem, result: CycleResult, folder: Path, *, every: int = 1
+) -> Path:
+    """ParaView series of a cycle of the bearing hinge with frictional fits.
+
+    As ``write_bearing_series``: ``displacement`` [mm] (the structure's; the preload
+    shift σ is a misfit in the ball law, not a displacement) and ``ball_load`` [N] on the
+    raceway patches; and on the fits' slave nodes (zero elsewhere) ``fit_pressure`` [MPa],
+    the normal contact force of a point over its nodal area, and ``fit_slip`` [mm], the
+    magnitude of the tangential relative displacement since the preload step (where the
+    fits' friction history starts; the preload's frictionless settling is not counted).
+
+    Raises:
+        ParameterError: If the result carries no ball coordinates (not a fits cycle).
+    """
+    mesh, geo = system.mesh, system.geo
+    coords = _ball_coordinates(result)
+    chosen = frames_of(result, every)
+    fields = fit_fields(system, result, chosen)
+    patches = _raceway_patches(system)
+    balls = system.balls
+    if result.preload_state is not None:
+        w_t0 = np.asarray(result.preload_state.w)[:, 1:]
+    else:
+        w_t0 = np.zeros((system.n_points, 2))
+
+    def fit_data(k: int) -> dict[str, FloatArray]:
+        c = coords[k + 1]
+        _, Q, _, _ = ball_law(balls.d0, (c[:-1] + c[-1] * system.preload_shift).reshape(-1, 2),
+                              balls.k_n)  # fmt: skip
+        st = result.states[k]
+        pressure = np.zeros(mesh.n_nodes)
+        slip = np.zeros(mesh.n_nodes)
+        pressure[geo.slave] = np.asarray(st.p)[:, 0] / geo.area_mm2
+        slip[geo.slave] = np.linalg.norm(np.asarray(st.w)[:, 1:] - w_t0, axis=1)
+        return {
+            "ball_load": _on_patches(mesh.n_nodes, patches, Q),
+            "fit_pressure": pressure,
+            "fit_slip": slip,
+        }
+
+    return write_series(mesh, result, chosen, fields, fit_data, folder)
