@@ -168,16 +168,23 @@ def _solve_contact(
     increment: int,
     start: tuple[FloatArray, FloatArray],
 ) -> IncrementResult:
-    """``solve_increment``, retried with ``RESCUE_SETTINGS`` before giving up."""
+    """``solve_increment``, retried with ``RESCUE_SETTINGS`` before giving up.
+
+    ``W`` is symmetric by construction (``solve_fit_increment``), so its check is skipped.
+    """
+
+    def solve(settings: ContactSettings) -> IncrementResult:
+        return solve_increment(
+            W, w_free, prev, settings, G=G, e=e, increment=increment, start=start, symmetric=True
+        )
+
     try:
-        return solve_increment(W, w_free, prev, contact, G=G, e=e, increment=increment, start=start)
+        return solve(contact)
     except ConvergenceError as first:
         for change in RESCUE_SETTINGS:
             try:
                 alt = dataclasses.replace(contact, **change)
-                return solve_increment(
-                    W, w_free, prev, alt, G=G, e=e, increment=increment, start=start
-                )
+                return solve(alt)
             except ConvergenceError:
                 continue
         raise first

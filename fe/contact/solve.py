@@ -35,6 +35,7 @@ def solve_increment(
     e: FloatArray | None = None,
     increment: int = 0,
     start: tuple[FloatArray, FloatArray] | None = None,
+    symmetric: bool | None = None,
 ) -> IncrementResult:
     """Solve one quasi-static increment of the frictional contact problem.
 
@@ -51,6 +52,9 @@ def solve_increment(
         start: Starting iterate ``(p (m, 3), α (k,))`` for Newton, e.g. extrapolated from
             the last increments; it changes where Newton starts, never the solution, and
             never the works (those use ``state_prev``). Default: the warm start.
+        symmetric: True when ``W`` is symmetric by construction (a condensed compliance
+            formed anew at every call, where checking it costs a full pass over ``W``);
+            None: checked, and remembered while the same ``W`` lives.
 
     Returns:
         The new state, iteration count, residual history, status counts and works.
@@ -61,7 +65,9 @@ def solve_increment(
             holds the last iterate as a ContactState.
     """
     m, k = state_prev.p.shape[0], state_prev.alpha.shape[0]
-    prob = validate_problem(W, w_free, state_prev, G, e)._replace(mu=settings.mu_per_point(m))
+    prob = validate_problem(W, w_free, state_prev, G, e, symmetric)._replace(
+        mu=settings.mu_per_point(m)
+    )
     blocks = np.diagonal(prob.W).reshape(m, 3)
     r_base = settings.r_scale / blocks.mean(axis=1)
     col_sq = float(np.max(np.sum(prob.G**2, axis=0))) if k else 0.0

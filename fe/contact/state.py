@@ -261,8 +261,12 @@ def validate_problem(
     state_prev: ContactState,
     G: FloatArray | None,
     e: FloatArray | None,
+    symmetric: bool | None = None,
 ) -> Problem:
     """Check shapes and finiteness of an increment's data and return its ``Problem``.
+
+    ``symmetric``: whether ``W`` is symmetric, when the caller knows it by construction
+    (a condensed operator); None checks it (``is_symmetric``, a full pass over ``W``).
 
     Raises:
         ParameterError: Naming the array whose shape or values are wrong.
@@ -295,7 +299,8 @@ def validate_problem(
             f"got {G_arr.shape} and {e_arr.shape}"
         )
     w_t_prev = np.array(state_prev.w[:, 1:])
-    return Problem(W, w_free, G_arr, e_arr, w_t_prev, 0.0, w_sum, is_symmetric(W, w_sum))
+    sym = is_symmetric(W, w_sum) if symmetric is None else bool(symmetric)
+    return Problem(W, w_free, G_arr, e_arr, w_t_prev, 0.0, w_sum, sym)
 
 
 SYMMETRY_RTOL = 1e-10

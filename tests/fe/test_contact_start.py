@@ -41,3 +41,20 @@ def test_start_with_wrong_shape_is_refused():
             ContactSettings(mu=0.3),
             start=(np.zeros((2, 3)), np.zeros(0)),
         )
+
+
+def test_a_symmetric_hint_skips_only_the_check():
+    """``symmetric=True`` (a condensed W known symmetric) gives the checked answer bit for
+    bit; the hint reaches the problem the solver builds (False takes the other path)."""
+    from fe.contact.state import validate_problem
+
+    W, w_free = problem()
+    settings = ContactSettings(mu=0.3)
+    prev = ContactState.initial(len(w_free))
+    checked = solve_increment(W, w_free, prev, settings)
+    hinted = solve_increment(W, w_free, prev, settings, symmetric=True)
+    assert np.array_equal(hinted.state.p, checked.state.p)
+    assert validate_problem(W, w_free, prev, None, None).symmetric
+    assert not validate_problem(W, w_free, prev, None, None, symmetric=False).symmetric
+    asym = W + np.triu(np.full_like(W, 1e-3), 1)
+    assert not validate_problem(asym, w_free, prev, None, None).symmetric
