@@ -66,8 +66,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "--interfaces",
         choices=("bonded", "contact"),
         default=None,
-        help="bearing hinge: rings, pin, clevis and plate tied (bonded, default) or in "
-        "frictional contact (contact: not in the cycle yet)",
+        help="bearing hinge: rings, pin, clevis and plate tied (bonded, default) or their six "
+        "fits as Coulomb contacts at zero clearance (contact, the paper's ABAQUS model)",
     )
     p.add_argument(
         "--frames",
