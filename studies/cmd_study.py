@@ -1,5 +1,8 @@
 """``hingelab study STUDY.toml --out DIR``: run a design study file, fit its surface, summarise.
 
+The study varies the clearance Δr and amplitude Fg of a general-hinge model, or the axial
+preload F_p and amplitude Fg of a bearing-hinge model (``[study] model``, kind = "bearing").
+
 The study file (``studies.study_file``) is checked completely before anything is meshed.
 Every point then runs through ``studies.sweep`` (traced, stored, resumable; in this
 process, on ``--workers`` local processes, or on an existing Dask cluster with
@@ -47,6 +50,22 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.set_defaults(func=run)
 
 
+SYMBOLS = {"clearance_mm": ("Δr", "mm"), "preload_N": ("F_p", "N"), "amplitude_N": ("Fg", "N")}
+"""How a design variable is printed: symbol and unit."""
+
+
+def _fmt_point(params: dict[str, Any], width: int = 0) -> str:
+    """``Δr = 0.1 mm, Fg = 400 N`` or ``F_p = 100 N, Fg = 400 N`` (``width``: parts padded)."""
+    parts = [f"{SYMBOLS[k][0]} = {v:g} {SYMBOLS[k][1]}" for k, v in params.items()]
+    return "  ".join(p.ljust(width) for p in parts) if width else ", ".join(parts)
+
+
+def _point_params(point: Any) -> dict[str, float]:
+    from studies.sweep import point_params
+
+    return point_params(point)
+
+
 def _fmt_s(seconds: float) -> str:
     seconds = max(0.0, seconds)
     return f"{seconds / 60:.0f} min {seconds % 60:02.0f} s" if seconds >= 60 else f"{seconds:.0f} s"
@@ -73,7 +92,6 @@ class Progress:
         computed = n - self.cached
         elapsed = time.perf_counter() - self.t0
         eta = elapsed / computed * (self.total - n) if computed else 0.0
-        p = rec["params"]
         eta_value = rec["results"].get("eta")
         what = (
             f"η = {eta_value:.5g}"
@@ -81,7 +99,7 @@ class Progress:
             else ("ok" if rec["status"] == "ok" else f"FAILED: {rec['error']}")
         )
         print(
-            f"[{n}/{self.total}] Δr = {p['clearance_mm']:g} mm, Fg = {p['amplitude_N']:g} N: {what}"
+            f"[{n}/{self.total}] {_fmt_point(rec['params'])}: {what}"
             f"   (done {self.done}, failed {self.failed}, cached {self.cached}; "
             f"ETA {_fmt_s(eta)})",
             file=sys.stderr,
@@ -98,9 +116,8 @@ def _dry_run(plan: list[Any], study: Any, args: argparse.Namespace) -> int:
                 {
                     "study": study.name,
                     "points": [
-                        {
-                            "clearance_mm": pp.point.clearance_mm,
-                            "amplitude_N": pp.point.amplitude_n,
+                        _point_params(pp.point)
+                        | {
                             "state": pp.state.value,
                             "point_id": pp.point_id,
                             "result_key": pp.key,
@@ -115,9 +132,7 @@ def _dry_run(plan: list[Any], study: Any, args: argparse.Namespace) -> int:
     print(f"study {study.name}: {len(plan)} points ({study.design})")
     for pp in plan:
         pid = "" if pp.point_id is None else f"  (trace point {pp.point_id})"
-        print(
-            f"  Δr = {pp.point.clearance_mm:<8g} Fg = {pp.point.amplitude_n:<8g} {pp.state.value}{pid}"
-        )
+        print(f"  {_fmt_point(_point_params(pp.point), 16)}{pp.state.value}{pid}")
     print(
         ", ".join(f"{counts.get(s, 0)} {s}" for s in ("done", "stored", "failed", "todo"))
         + " (done: in the trace; stored: read back from results/; failed and todo: run)"
@@ -209,9 +224,12 @@ def _summary(
         worst = max(fit["points"], key=lambda p: abs(p["RE_percent"] or 0.0))
         nxt = f"hingelab trace {outcome.db} {worst['label'].removeprefix('point ')}"
     else:
-        nxt = f"hingelab rsm fit {outcome.table} --x clearance_mm,amplitude_N --y eta --trace {outcome.db}"
+        x = ",".join(study.variables)
+        nxt = f"hingelab rsm fit {outcome.table} --x {x} --y eta --trace {outcome.db}"
     return {
         "study": study.name,
+        "hinge": study.kind,
+        "variables": list(study.variables),
         "design": study.design,
         "n_points": len(set(study.points)),
         "computed": outcome.ok,
@@ -238,6 +256,10 @@ def _summary(
     }
 
 
+def _fmt_at(names: list[str], values: list[float]) -> str:
+    return _fmt_point({k: round(v, 4) for k, v in zip(names, values, strict=True)})
+
+
 def _summary_text(s: dict[str, Any]) -> str:
     lines = [
         f"study {s['study']} ({s['design']}, {s['n_points']} points): {s['computed']} computed, "
@@ -252,8 +274,8 @@ def _summary_text(s: dict[str, Any]) -> str:
         lines.append(
             f"  {f['y']} = f({', '.join(f['x'])}), degree {f['degree']}: "
             f"R² = {'n/a' if r2 is None else f'{r2:.4f}'}; "
-            f"min {f['minimum']['y']:.5g} at {[round(v, 4) for v in f['minimum']['x']]}, "
-            f"max {f['maximum']['y']:.5g} at {[round(v, 4) for v in f['maximum']['x']]}"
+            f"min {f['minimum']['y']:.5g} at {_fmt_at(f['x'], f['minimum']['x'])}; "
+            f"max {f['maximum']['y']:.5g} at {_fmt_at(f['x'], f['maximum']['x'])}"
         )
         for w in f["warnings"]:
             lines.append(f"  warning: {w}")

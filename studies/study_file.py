@@ -5,21 +5,27 @@ Layout (every section optional except ``[design]``; an absent key keeps its defa
     [study]     name = "..."           trace study name (default: the file's stem)
                 description = "..."
                 model = "MODEL.toml"   a model file to extend (relative to this file;
-                                       default: the default general hinge)
-    [hinge]     geometry of the general hinge, the number fields of GeneralHingeParams
-                (pin_radius_mm, lug_width_mm, ...; clearance_mm is a design variable)
-    [mesh]      preset = "default" | "coarse" (MeshSettings.coarse(): 4 mm / 2 mm, a cycle in
-                seconds), then any number field of MeshSettings (size_mm, refinement, ...)
+                                       default: the default general hinge); its kind,
+                                       general or bearing, sets the design variables
+    [hinge]     the number fields of the model's GeneralHingeParams (pin_radius_mm,
+                lug_width_mm, ...; clearance_mm is a design variable) or BearingHingeParams
+                (bore_mm, contact_angle_deg, ...; preload_n is a design variable)
+    [mesh]      preset = "default" | "coarse" (general hinge: MeshSettings.coarse(), 4 mm /
+                2 mm; bearing hinge without meshed balls: 4 mm / 0.8 mm, rings 1.2 mm; a
+                cycle in seconds), then any number field of MeshSettings (size_mm, ...)
     [solver]    mu, increments (per half cycle, with and without clearance), and any
                 number field of CycleSettings (increments_per_stage, clearance_increments,
                 n_cycles, grading, tol, max_iter, contact_window, max_cutbacks)
     [design]    type = "full_factorial" | "latin_hypercube" | "central_composite"
                 samples = N, seed = S        (latin_hypercube)
                 face = "faced" | "inscribed" | "circumscribed", center = N   (central_composite)
-    [design.clearance_mm]   levels = [...] (full factorial) or min = .., max = .. (the others)
+    [design.clearance_mm]   general hinge: levels = [...] (full factorial) or min = .., max = ..
+                            (the others)
+    [design.preload_N]      bearing hinge: the same, in [0, 500] N (instead of clearance_mm)
     [design.amplitude_N]    the same; a variable left out stays at its fixed value
-                            (clearance 0; the model's amplitude)
-    [surface]   x = ["clearance_mm", "amplitude_N"], y = "eta", degree = 1..4,
+                            (clearance 0; the model's preload; the model's amplitude)
+    [surface]   x = the varied variables (["clearance_mm", "amplitude_N"] or
+                ["preload_N", "amplitude_N"]), y = "eta", degree = 1..4,
                 threshold = η (optional: the region below it is shaded)
 
 Everything is checked on load, before anything is meshed: an unknown section or key is
@@ -39,8 +45,13 @@ from typing import Any
 
 from cad.errors import DataError, ParameterError
 
-VARIABLES = ("clearance_mm", "amplitude_N")
-"""What a study may vary: the fields of ``fe.service.DesignPoint``."""
+VARIABLES: dict[str, tuple[str, str]] = {
+    "general": ("clearance_mm", "amplitude_N"),
+    "bearing": ("preload_N", "amplitude_N"),
+}
+"""What a study of each hinge kind may vary: (design value, amplitude), the fields of
+``fe.service.DesignPoint`` under the names the sweep's trace and table give them
+(``studies.sweep.point_params``)."""
 
 RESPONSES = (
     "eta",
@@ -86,7 +97,9 @@ class Study:
         description: Free text.
         spec: The model (``fe.service.ModelSpec``).
         design: Design type.
-        points: (clearance [mm], amplitude [N]) of every point, in design order.
+        points: (design value, amplitude [N]) of every point, in design order; the design
+            value is the clearance [mm] of the general hinge or the preload [N] of the
+            bearing hinge (``variables``).
         surface: The surface to fit, or None.
     """
 
@@ -97,6 +110,16 @@ class Study:
     design: str
     points: tuple[tuple[float, float], ...]
     surface: SurfaceSpec | None
+
+    @property
+    def kind(self) -> str:
+        """The hinge kind of the model, ``general`` or ``bearing``."""
+        return str(self.spec.kind)
+
+    @property
+    def variables(self) -> tuple[str, str]:
+        """The names of a point's two values (trace parameters and table columns)."""
+        return VARIABLES[self.kind]
 
     def sweep_settings(self, *, workers: int = 1, scheduler: str | None = None) -> Any:
         """The ``studies.sweep.SweepSettings`` that run this study."""
@@ -183,22 +206,32 @@ def _model(doc: dict[str, Any], study: dict[str, Any], path: Path) -> Any:
 
     spec = _base_spec(study, path)
     check_spec(spec)
-    if spec.kind != "general":
+    if spec.kind not in VARIABLES:
         raise _err(
             path,
             "study",
-            f"model: study files vary the general hinge's clearance × amplitude; got a "
-            f"{spec.kind!r} model (for the bearing hinge: hingelab sweep --hinge bearing "
-            "--preload LIST --amplitude LIST)",
+            f"model: a study needs a {' or '.join(VARIABLES)} model, got {spec.kind!r}",
         )
-    hinge = _override(spec.hinge, _table(doc, "hinge", path), path, "hinge", skip=("clearance_mm",))
+    bearing = spec.kind == "bearing"
+    design_field = "preload_n" if bearing else "clearance_mm"
+    hinge = _override(spec.hinge, _table(doc, "hinge", path), path, "hinge", skip=(design_field,))
     mesh_t = dict(_table(doc, "mesh", path))
     preset = mesh_t.pop("preset", None)
     mesh = spec.mesh
     if preset is not None:
         if preset not in MESH_PRESETS:
             raise _err(path, "mesh", f"preset must be one of {list(MESH_PRESETS)}, got {preset!r}")
-        mesh = MeshSettings.coarse() if preset == "coarse" else MeshSettings()
+        if bearing:
+            from cad.bearing import BallModel
+
+            balls = hinge.ball_model is BallModel.FULL
+            mesh = MeshSettings.for_hinge("bearing", balls=balls)
+            if preset == "coarse":
+                mesh = dataclasses.replace(
+                    mesh, size_mm=4.0, contact_size_mm=0.8, part_sizes_mm=(("ring", 1.2),)
+                )
+        else:
+            mesh = MeshSettings.coarse() if preset == "coarse" else MeshSettings()
     mesh = _override(mesh, mesh_t, path, "mesh")
     solver_t = dict(_table(doc, "solver", path))
     if "increments" in solver_t:
@@ -249,13 +282,21 @@ def _design(doc: dict[str, Any], spec: Any, path: Path) -> tuple[str, list[tuple
         "latin_hypercube": ("samples", "seed"),
         "central_composite": ("face", "center"),
     }
-    _keys(design, ["type", *VARIABLES, *extra[kind]], path, "design")
-    found = {v: _variable(design, v, kind, path) for v in VARIABLES}
-    varied = [v for v in VARIABLES if found[v] is not None]
+    names = VARIABLES[spec.kind]
+    for other_kind, other in VARIABLES.items():
+        wrong = [v for v in other if v not in names and v in design]
+        if wrong:
+            raise _err(
+                path,
+                "design",
+                f"{wrong[0]} is a design variable of the {other_kind} hinge; the model is the "
+                f"{spec.kind} hinge, whose study varies {', '.join(names)}",
+            )
+    _keys(design, ["type", *names, *extra[kind]], path, "design")
+    found = {v: _variable(design, v, kind, path) for v in names}
+    varied = [v for v in names if found[v] is not None]
     if not varied:
-        raise _err(
-            path, "design", f"vary at least one of {list(VARIABLES)} ([design.{VARIABLES[0]}])"
-        )
+        raise _err(path, "design", f"vary at least one of {list(names)} ([design.{names[0]}])")
     if kind == "full_factorial":
         x = doe.full_factorial([found[v] for v in varied])
     elif kind == "latin_hypercube":
@@ -278,30 +319,31 @@ def _design(doc: dict[str, Any], spec: Any, path: Path) -> tuple[str, list[tuple
         x = doe.central_composite(
             [found[v] for v in varied], face=doe.CompositeFace[face.upper()], n_center=center
         )
-    fixed = {"clearance_mm": 0.0, "amplitude_N": spec.cycle.amplitude_n}
-    cols = {
-        v: (x[:, varied.index(v)] if v in varied else np.full(len(x), fixed[v])) for v in VARIABLES
-    }
-    points = [
-        (float(c), float(a)) for c, a in zip(cols["clearance_mm"], cols["amplitude_N"], strict=True)
-    ]
+    value = spec.hinge.preload_n if spec.kind == "bearing" else 0.0
+    fixed = dict(zip(names, (value, spec.cycle.amplitude_n), strict=True))
+    cols = {v: (x[:, varied.index(v)] if v in varied else np.full(len(x), fixed[v])) for v in names}
+    points = [(float(c), float(a)) for c, a in zip(cols[names[0]], cols[names[1]], strict=True)]
     return kind, points
 
 
-def _check_points(points: list[tuple[float, float]], path: Path) -> None:
+def _check_points(points: list[tuple[float, float]], kind: str, path: Path) -> None:
     from fe.service import DesignPoint
 
-    for i, (c, a) in enumerate(points):
+    name, amp = VARIABLES[kind]
+    for i, (v, a) in enumerate(points):
         try:
-            DesignPoint(amplitude_n=a, clearance_mm=c)
+            if kind == "bearing":
+                DesignPoint(amplitude_n=a, preload_n=v)
+            else:
+                DesignPoint(amplitude_n=a, clearance_mm=v)
         except ParameterError as err:
             raise _err(
-                path, "design", f"point {i + 1} (clearance_mm = {c:g}, amplitude_N = {a:g}): {err}"
+                path, "design", f"point {i + 1} ({name} = {v:g}, {amp} = {a:g}): {err}"
             ) from err
 
 
 def _surface(
-    doc: dict[str, Any], n_points: int, varied: set[str], path: Path
+    doc: dict[str, Any], n_points: int, varied: set[str], names: tuple[str, ...], path: Path
 ) -> SurfaceSpec | None:
     from math import comb
 
@@ -311,7 +353,7 @@ def _surface(
     if not isinstance(table, dict):
         raise _err(path, "surface", f"must be a table, got {table!r}")
     _keys(table, ("x", "y", "degree", "threshold"), path, "surface")
-    x = table.get("x", sorted(varied, key=VARIABLES.index))
+    x = table.get("x", sorted(varied, key=names.index))
     if not isinstance(x, list) or not x or any(v not in varied for v in x):
         raise _err(
             path,
@@ -365,8 +407,9 @@ def read_study(path: Path | str) -> Study:
         )
     spec = _model(doc, study, path)
     kind, points = _design(doc, spec, path)
-    _check_points(points, path)
+    _check_points(points, spec.kind, path)
+    names = VARIABLES[spec.kind]
     unique = {(c + 0.0, a + 0.0) for c, a in points}
-    varied = {v for v, i in zip(VARIABLES, (0, 1), strict=True) if len({p[i] for p in unique}) > 1}
-    surface = _surface(doc, len(unique), varied, path)
+    varied = {v for v, i in zip(names, (0, 1), strict=True) if len({p[i] for p in unique}) > 1}
+    surface = _surface(doc, len(unique), varied, names, path)
     return Study(path, name, description, spec, kind, tuple(points), surface)

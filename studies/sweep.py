@@ -16,9 +16,10 @@ points of one clearance on the same worker (one preparation per clearance). With
 only the installed package; each point's cycle comes back to this process, which stores
 it, writes its files and records it (the geometry files stay with the workers).
 
-A sweep is a clearance × amplitude grid, or any list of points (``points``: a Latin
-hypercube or central composite design of a study file, ``studies.study_file``), on the
-default general hinge or on any ``ModelSpec`` (``model``). ``plan_sweep`` says, without
+A sweep is a clearance (or preload) × amplitude grid, or any list of (clearance or preload,
+amplitude) points by the hinge kind (``points_mm_n``: a Latin hypercube or central
+composite design of a study file, ``studies.study_file``), on the default general or
+bearing hinge or on any ``ModelSpec`` (``model``). ``plan_sweep`` says, without
 meshing anything, which points are done, stored, failed before, or still to run.
 
 Layout of ``out``::
@@ -62,8 +63,10 @@ class SweepSettings:
         mesh: Mesh settings.
         workers: Dask worker processes; 1 runs in this process.
         study: Study name in the trace.
-        points: Explicit (clearance [mm], amplitude [N]) points; when given they replace
-            the grid of ``clearances_mm`` × ``amplitudes_n``.
+        points_mm_n: Explicit (design value, amplitude [N]) points, the design value being
+            the clearance [mm] of the general hinge or the preload [N] of the bearing hinge;
+            when given they replace the grid (``clearances_mm`` or ``preloads_n`` ×
+            ``amplitudes_n``).
         model: The model (``fe.service.ModelSpec``) to run instead of the default
             general hinge with ``mu``, the increments and ``mesh`` above.
         scheduler: Address of an existing Dask scheduler (``tcp://host:8786``); None runs
@@ -91,13 +94,8 @@ class SweepSettings:
     def __post_init__(self) -> None:
         if self.hinge not in ("general", "bearing"):
             raise ParameterError(f"hinge must be 'general' or 'bearing', got {self.hinge!r}")
-        if self.is_bearing and not self.preloads_n:
+        if self.is_bearing and not self.points_mm_n and not self.preloads_n:
             raise ParameterError("a bearing sweep needs at least one preload, got none")
-        if self.is_bearing and self.points_mm_n:
-            raise ParameterError(
-                "points (clearance, amplitude) apply to the general hinge; a bearing sweep is "
-                "its preloads_n × amplitudes_n grid"
-            )
         if not self.points_mm_n and (not self.clearances_mm or not self.amplitudes_n):
             raise ParameterError(
                 f"a sweep needs at least one clearance and one amplitude, got {self.clearances_mm} "
@@ -145,15 +143,22 @@ class SweepSettings:
         return self.hinge == "bearing"
 
     def points(self) -> list[Any]:
-        """The distinct design points (the grid clearance- or preload-major, or ``points``)."""
+        """The distinct design points (the grid clearance- or preload-major, or ``points_mm_n``).
+
+        Raises:
+            ParameterError: For a value out of ``DesignPoint``'s ranges (a preload outside
+                [0, 500] N, a negative clearance, ...), named with its range.
+        """
         from fe.service import DesignPoint, design_points
 
         if self.is_bearing:
+            pairs = self.points_mm_n or tuple(
+                (fp, a) for fp in self.preloads_n for a in self.amplitudes_n
+            )
             grid: dict[tuple[float | None, float], Any] = {}
-            for fp in self.preloads_n:
-                for a in self.amplitudes_n:
-                    p = DesignPoint(amplitude_n=a, preload_n=fp)
-                    grid.setdefault((p.preload_n, p.amplitude_n), p)
+            for fp, a in pairs:
+                p = DesignPoint(amplitude_n=a, preload_n=fp)
+                grid.setdefault((p.preload_n, p.amplitude_n), p)
             return list(grid.values())
         if not self.points_mm_n:
             return design_points(self.clearances_mm, self.amplitudes_n)

@@ -179,20 +179,132 @@ def test_study_runs_fits_retries_failed(tmp_path, capsys, monkeypatch):
     assert (out / "study.toml").is_file()
 
 
-def test_a_bearing_model_in_a_study_file_is_refused_by_name(tmp_path):
-    """Study designs are clearance × amplitude: a bearing model must not silently run another grid."""
-    from cad.bearing import BearingHingeParams
-    from fe.service import ModelSpec
-    from validation.model_file import write_model
+BEARING = """
+[study]
+name = "bearing"
+model = "MODEL_bearing.toml"
+[design]
+type = "full_factorial"
+[design.preload_N]
+levels = [0.0, 100.0, 200.0]
+[design.amplitude_N]
+levels = [200.0, 400.0]
+"""
 
-    write_model(ModelSpec("bearing", BearingHingeParams()), tmp_path / "MODEL.toml")
-    text = ONE_CLEARANCE.replace('name = "fast"', 'name = "fast"\nmodel = "MODEL.toml"')
-    with pytest.raises(ParameterError, match=r"\[study\] model: .*'bearing' model.*sweep --hinge bearing"):
+
+def _bearing(tmp_path: Path, text: str = BEARING) -> Path:
+    """A bearing study beside a copy of the shipped bearing model."""
+    (tmp_path / "MODEL_bearing.toml").write_text((EXAMPLES / "MODEL_bearing.toml").read_text())
+    return _write(tmp_path, text)
+
+
+def test_a_bearing_study_varies_preload_and_amplitude(tmp_path):
+    s = read_study(EXAMPLES / "bearing_coarse_2x2.toml")
+    assert (s.kind, s.variables) == ("bearing", ("preload_N", "amplitude_N"))
+    assert s.points == ((0.0, 200.0), (0.0, 400.0), (200.0, 200.0), (200.0, 400.0))
+    assert s.surface is not None
+    assert s.surface.x == ("preload_N", "amplitude_N")
+    pts = s.sweep_settings().points()
+    assert [(p.preload_n, p.amplitude_n, p.clearance_mm) for p in pts] == [
+        (fp, a, 0.0) for fp, a in s.points
+    ]
+    # a variable left out stays at the model's value; [hinge] sets the bearing's numbers
+    text = BEARING.replace("levels = [0.0, 100.0, 200.0]", "").replace("[design.preload_N]\n", "")
+    text = text.replace(
+        "[design]", "[hinge]\ncontact_angle_deg = 20.0\n[surface]\ndegree = 1\n[design]"
+    )
+    one = read_study(_bearing(tmp_path, text))
+    assert one.points == ((100.0, 200.0), (100.0, 400.0))  # the model's preload_n = 100
+    assert one.spec.hinge.contact_angle_deg == 20.0
+    assert one.surface is not None
+    assert one.surface.x == ("amplitude_N",)  # the default x: what the study varies
+    # min/max designs as for the clearance
+    lhs = BEARING.replace('"full_factorial"', '"latin_hypercube"\nsamples = 6').replace(
+        "levels = [0.0, 100.0, 200.0]", "min = 50.0\nmax = 250.0"
+    )
+    lhs = lhs.replace("levels = [200.0, 400.0]", "min = 100.0\nmax = 500.0")
+    points = read_study(_bearing(tmp_path, lhs)).points
+    assert len(points) == 6
+    assert all(50.0 <= fp <= 250.0 and 100.0 <= a <= 500.0 for fp, a in points)
+    # the coarse preset of a bearing model is the coarse bearing mesh, not the general one
+    coarse = read_study(_bearing(tmp_path, BEARING + '[mesh]\npreset = "coarse"\n'))
+    assert (coarse.spec.mesh.size_mm, coarse.spec.mesh.contact_size_mm) == (4.0, 0.8)
+    assert coarse.spec.mesh.part_sizes_mm == (("ring", 1.2),)
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (
+            ("[design.preload_N]", "[design.clearance_mm]"),
+            r"\[design\] clearance_mm is a design variable of the general hinge; the model is the "
+            r"bearing hinge, whose study varies preload_N, amplitude_N",
+        ),
+        (
+            ("levels = [0.0, 100.0, 200.0]", "levels = [0.0, 600.0]"),
+            r"\[design\] point 3 \(preload_N = 600, amplitude_N = 200\): preload_n must be in "
+            r"\[0, 500\], got 600",
+        ),
+        (
+            ("[design]", "[hinge]\npreload_n = 50.0\n[design]"),
+            r"\[hinge\] unknown key\(s\) \['preload_n'\]; allowed: bore_mm",
+        ),
+        (
+            ("[design]", "[hinge]\ncontact_angle_deg = 95.0\n[design]"),
+            r"\[hinge\] contact_angle_deg",
+        ),
+        (
+            ("[design]", '[surface]\nx = ["clearance_mm"]\n[design]'),
+            r"\[surface\] x must list design variables the study varies",
+        ),
+    ],
+    ids=["clearance-in-bearing", "preload-range", "preload-in-hinge", "hinge-range", "surface-x"],
+)
+def test_bad_bearing_study_refused_by_key_and_range(tmp_path, edit, message):
+    with pytest.raises(ParameterError, match=message):
+        read_study(_bearing(tmp_path, BEARING.replace(*edit, 1)))
+
+
+def test_a_preload_in_a_general_study_is_refused_by_name(tmp_path):
+    text = ONE_CLEARANCE.replace("[design.clearance_mm]", "[design.preload_N]")
+    with pytest.raises(
+        ParameterError,
+        match=r"\[design\] preload_N is a design variable of the bearing hinge; the model is the "
+        r"general hinge, whose study varies clearance_mm, amplitude_N",
+    ):
         read_study(_write(tmp_path, text))
 
 
-def test_a_bearing_sweep_refuses_clearance_points():
+def test_bearing_dry_run_prints_preloads(tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["study", str(EXAMPLES / "bearing_coarse_2x2.toml"), "--out", str(out), "--dry-run"]
+    assert main([*argv, "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert [(p["preload_N"], p["amplitude_N"]) for p in report["points"]] == [
+        (0.0, 200.0), (0.0, 400.0), (200.0, 200.0), (200.0, 400.0)
+    ]  # fmt: skip
+    assert "clearance_mm" not in report["points"][0]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "F_p = 200 N" in text
+    assert "Δr" not in text
+    assert not (out / "geometry").exists()
+
+
+def test_sweep_points_follow_the_hinge_kind():
+    """Explicit points are (clearance, amplitude) on the general hinge, (preload, amplitude)
+    on the bearing hinge; the general hinge's points and keys are unchanged."""
+    from fe.service import DesignPoint
     from studies.sweep import SweepSettings
 
-    with pytest.raises(ParameterError, match=r"points .* apply to the general hinge"):
-        SweepSettings(hinge="bearing", points_mm_n=((0.0, 100.0),))
+    bearing = SweepSettings(
+        hinge="bearing", points_mm_n=((100.0, 200.0), (100, 200.0), (0.0, 50.0))
+    )
+    assert bearing.points() == [
+        DesignPoint(200.0, preload_n=100.0),
+        DesignPoint(50.0, preload_n=0.0),
+    ]
+    general = SweepSettings(points_mm_n=((0.1, 200.0),))
+    assert general.points() == [DesignPoint(200.0, clearance_mm=0.1)]
+    with pytest.raises(ParameterError, match=r"preload_n must be in \[0, 500\], got 600"):
+        SweepSettings(hinge="bearing", points_mm_n=((600.0, 200.0),))
