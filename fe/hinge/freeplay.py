@@ -17,6 +17,7 @@ How it is computed (``run_sliding``), with the two touching configurations of
 * **force control** (``fe.hinge.cycle._advance``) in the current configuration while the
   target is within what the faces hold, or on the side where the pin is engaged; the pin
   may open and float (``p = 0`` on all its points), the faces then carry the load alone.
+  Until the first slide the faces alone are solved (``_held``) and the pin stays centred.
 * **approach**: when a target lies beyond ``F_slide`` on the side where the pin is not
   engaged, force control goes to ``(1 − APPROACH_MARGIN) F_slide``, then the grip is
   moved (displacement control, pin included) in doubling steps until every face point
@@ -165,6 +166,71 @@ def _displaced(
     )
 
 
+def _held(
+    cond: Condensed, state: ContactState, force_n: float, contact: ContactSettings, index: int
+) -> _Step:
+    """One force-controlled increment of the faces alone, the pin kept where it is (centred).
+
+    While the faces hold the clevis in the middle of the free play the pin touches nothing;
+    leaving it out keeps it centred (in the whole problem it would float to the
+    minimum-norm position, against the far side of the clevis' holes).
+    """
+    m = len(cond.geo.slave)
+    sel = face_mask(cond)
+    rows = _rows(sel)
+    W = np.asarray(cond.W)[np.ix_(rows, rows)]
+    G = np.asarray(cond.G)[rows][:, [GRIP]]
+    prev = ContactState(
+        np.asarray(state.p)[sel],
+        np.asarray(state.w)[sel],
+        np.asarray(state.status)[sel],
+        np.asarray(state.alpha)[[GRIP]],
+    )
+    w_free = np.asarray(cond.w0)[sel]
+    res = solve_increment(W, w_free, prev, contact, G=G, e=np.array([-force_n]), increment=index)
+    p = np.zeros((m, 3))
+    p[sel] = res.state.p
+    alpha = np.array(state.alpha, dtype=np.float64, copy=True)
+    alpha[GRIP] = res.state.alpha[0]
+    w = _consistent(cond, p, alpha)
+    w[sel] = res.state.w
+    status = np.zeros(m, dtype=np.int8)
+    status[sel] = res.state.status
+    return _Step(
+        ContactState(p, w, status, alpha),
+        float(np.sum(res.friction_work)),
+        float(np.sum(res.normal_work)),
+        res.iterations,
+        _counts(status),
+    )
+
+
+def _held_steps(
+    cond: Condensed,
+    state: ContactState,
+    f_from: float,
+    f_to: float,
+    contact: ContactSettings,
+    settings: CycleSettings,
+    index: int,
+    partial: Callable[[], CycleResult],
+) -> list[_Step]:
+    """``_held`` from ``f_from`` to ``f_to``, with cut-backs; every sub-step returned."""
+
+    def attempt(n_sub: int) -> list[_Step]:
+        out: list[_Step] = []
+        st = state
+        for k in range(1, n_sub + 1):
+            out.append(_held(cond, st, f_from + (f_to - f_from) * k / n_sub, contact, index))
+            st = out[-1].state
+        return out
+
+    what = f"increment {index} (F {f_from:.4g} → {f_to:.4g} N, faces holding)"
+    return with_cutbacks(
+        attempt, settings.max_cutbacks, increment=index, what=what, partial=partial
+    )
+
+
 def slide_force(cond: Condensed, contact: ContactSettings, direction: int) -> float:
     """Force the faces hold before they slide, ``F_slide`` [N] (> 0), for a grip moving ``direction``.
 
@@ -274,13 +340,16 @@ def _approach(
     settings: CycleSettings,
     index: int,
     partial: Callable[[], CycleResult],
+    centred: bool,
 ) -> list[_Step]:
     """Move the grip in doubling steps until no face point sticks and the pin is free.
 
     Displacement control has no limit point, so the faces' limit load (where they let go)
     is reached without the force-controlled solve failing at it. Returns every step.
+    ``centred``: the pin is in the middle of its holes and stays out of the solve.
     """
     faces = face_mask(cond)
+    mask = faces if centred else None
     steps: list[_Step] = []
     step_mm = FIRST_APPROACH_STEP_MM
     for _ in range(MAX_APPROACH_STEPS):
@@ -292,7 +361,7 @@ def _approach(
             a0 = float(st.alpha[GRIP])
             works, iters = np.zeros(2), 0
             for k in range(1, n_sub + 1):
-                r = _displaced(cond, st, a0 + (to - a0) * k / n_sub, contact, None, idx)
+                r = _displaced(cond, st, a0 + (to - a0) * k / n_sub, contact, mask, idx)
                 works += (r.friction_work, r.normal_work)
                 iters += r.iterations
                 st = r.state
@@ -408,6 +477,23 @@ def run_sliding(
         states.append(step.state)
         return f
 
+    def forced(
+        stage: int, f_to: float, previous: tuple[float, ContactState] | None
+    ) -> ContactState:
+        """Force control from ``f_prev`` to ``f_to``, every (sub-)step recorded; the last state."""
+        if engaged == 0:  # the faces hold the clevis centred: the pin stays out
+            for step in _held_steps(
+                cond, state, f_prev, f_to, contact, settings, len(incs), partial
+            ):
+                keep(stage, side, step)
+            return step.state
+        for f, new, res in _forced(
+            cond, state, f_prev, f_to, contact, settings, len(incs), partial, previous
+        ):
+            incs.append(_record(stage, f, side, res, cond))
+            states.append(new)
+        return new
+
     f_prev = 0.0
     peaks: list[int] = []
     for stage, (f_from, f_to, n) in enumerate(settings.stages()):
@@ -417,24 +503,18 @@ def run_sliding(
             if d != engaged and abs(target) > f_slide[d]:  # the faces let go: slide
                 f_a = d * (1.0 - APPROACH_MARGIN) * f_slide[d]
                 if d * f_prev < abs(f_a):
-                    for f, new, res in _forced(
-                        cond, state, f_prev, f_a, contact, settings, len(incs), partial, previous
-                    ):
-                        incs.append(_record(stage, f, side, res, cond))
-                        states.append(new)
-                    state = new
-                for step in _approach(cond, state, d, contact, settings, len(incs), partial):
+                    state, f_prev = forced(stage, f_a, previous), f_a
+                steps = _approach(
+                    cond, state, d, contact, settings, len(incs), partial, engaged == 0
+                )
+                for step in steps:
                     f_prev = keep(stage, side, step)
                     state = step.state
                 step = _slide(cond, configs[d], state, (side - d) * half, d, contact, len(incs))
                 side, engaged, cond = d, d, configs[d]
                 slides.append(len(incs))
                 f_prev, state, previous = keep(stage, side, step), step.state, None
-            for f, new, res in _forced(
-                cond, state, f_prev, float(target), contact, settings, len(incs), partial, previous
-            ):
-                incs.append(_record(stage, f, side, res, cond))
-                states.append(new)
+            new = forced(stage, float(target), previous)
             previous, state, f_prev = (f_prev, state), new, float(target)
             if target == f_to:
                 peaks.append(len(incs) - 1)

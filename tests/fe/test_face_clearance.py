@@ -173,3 +173,16 @@ def test_result_replace_keeps_the_sliding_fields(slid):
     r = dataclasses.replace(slid.result, increments=slid.result.increments)
     assert r.slides == slid.result.slides
     assert r.faces_slide
+
+
+def test_held_clevis_keeps_the_pin_centred_inside_a_contact_window(loose):
+    """With a contact window (the service's default) the far side of the holes is only
+    checked at the peaks: the pin must stay centred while the faces hold the clevis, not
+    float against it (that failed the window check)."""
+    system, _ = loose
+    windowed = configurations(system, CLEARANCE, 0.5)
+    assert windowed[1].outside is not None
+    r = run_cycle_with_effects(system, CLEARANCE, settings(100.0), _faces(), configs=windowed)
+    assert r.result.slides == ()
+    for state in r.result.states:
+        assert float(state.alpha[0]) == -CLEARANCE  # centred: −Δr from the tension position
