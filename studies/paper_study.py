@@ -239,8 +239,25 @@ def _outcome(o: Any, out: Path) -> dict[str, Any]:
         "cached": o.cached,
         "skipped": o.skipped,
         "wall_s": o.wall_s,
+        "compute_s": _compute_s(o.table),
         "table": str(o.table.relative_to(out)),
     }
+
+
+def _compute_s(table: Path) -> float | None:
+    """Sum of the points' own wall times as recorded when they were computed [s].
+
+    Setup included; a rerun that reads the points back still reports what they cost.
+    None if the table has no ``wall_s`` column.
+    """
+    if not table.is_file():
+        return None
+    with table.open(newline="", encoding="utf-8") as fh:
+        walls = [r.get("wall_s") or "" for r in csv.DictReader(fh)]
+    try:
+        return float(sum(float(w) for w in walls if w))
+    except ValueError:
+        return None
 
 
 def _label(settings: Any, name: str) -> str:
@@ -266,7 +283,11 @@ def report_markdown(r: dict[str, Any]) -> str:
         "# The paper's study with hingelab's FE",
         "",
         f"Run: `hingelab paper{' --quick' if s['quick'] else ''} --interfaces {s['interfaces']}"
-        f" --mu {s['mu']:g}` ({r['wall_s']:.0f} s). The paper (ABAQUS) gives no dimensions and "
+        f" --mu {s['mu']:g}` ({r['wall_s']:.0f} s this run; computing the points took "
+        + ", ".join(
+            f"{n} {_fmt(o.get('compute_s'), '.0f')} s" for n, o in r["sweeps"].items()
+        )
+        + " when they ran, setup included). The paper (ABAQUS) gives no dimensions and "
         "no friction coefficient: its tables are a record to compare with, not a target, and "
         "every difference below is reported as it is.",
         "",
