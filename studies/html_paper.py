@@ -109,6 +109,15 @@ def paper_study_report(folder: Path, report_dir: Path) -> ReportBody:
             ]
         )
         sections.append(Section("paper-reduction", "What the bearing brings", body))
+    if r.get("validation_points"):
+        rows = [
+            [v["hinge"], v["quantity"], v["paper_fe"], v["paper_test"], v["ours"]]
+            for v in r["validation_points"]
+        ]
+        table_html = table(["hinge", "quantity (400 N)", "paper FE", "paper test", "ours"], rows)
+        sections.append(
+            Section("paper-validation-points", "The 400 N validation points", table_html)
+        )
     if r.get("threshold"):
         sections.append(_threshold_section(folder, r["threshold"]))
     if r.get("repeatability"):

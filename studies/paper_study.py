@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from studies import paper_threshold
+from studies import paper_checks
 from studies.pipeline import dumps, strict_json
 
 GRID = (100.0, 200.0, 300.0, 400.0, 500.0)
@@ -180,7 +180,11 @@ def _copy_loop(sweep_out: Path, label: str, dest: Path) -> str | None:
 def run_paper(study: PaperStudy, out: Path) -> dict[str, Any]:
     """Run both sweeps, fit, plot and compare; write ``report.json`` and ``report.md``."""
     from rsm.paper_printed import GENERAL, MODIFIED, TABLE7_POINT
-    from studies.paper_threshold import repeatability_pairs, threshold_comparison
+    from studies.paper_checks import (
+        repeatability_pairs,
+        threshold_comparison,
+        validation_points,
+    )
     from studies.sweep import run_sweep
 
     hinges = (
@@ -203,6 +207,7 @@ def run_paper(study: PaperStudy, out: Path) -> dict[str, Any]:
         )
     if any(v is not None for v in surfaces.values()):
         report["threshold"] = threshold_comparison(surfaces, out)
+    report["validation_points"] = validation_points({n: outcomes[n].table for n, _, _ in hinges})
     report["repeatability"] = repeatability_pairs(
         {n: _eta_at(report[n], xs, TABLE7_POINT[n]) for n, xs, _ in hinges}
     )
@@ -284,9 +289,7 @@ def report_markdown(r: dict[str, Any]) -> str:
         "",
         f"Run: `hingelab paper{' --quick' if s['quick'] else ''} --interfaces {s['interfaces']}"
         f" --mu {s['mu']:g}` ({r['wall_s']:.0f} s this run; computing the points took "
-        + ", ".join(
-            f"{n} {_fmt(o.get('compute_s'), '.0f')} s" for n, o in r["sweeps"].items()
-        )
+        + ", ".join(f"{n} {_fmt(o.get('compute_s'), '.0f')} s" for n, o in r["sweeps"].items())
         + " when they ran, setup included). The paper (ABAQUS) gives no dimensions and "
         "no friction coefficient: its tables are a record to compare with, not a target, and "
         "every difference below is reported as it is.",
@@ -343,7 +346,9 @@ def report_markdown(r: dict[str, Any]) -> str:
             f"| reduction of η_min | {_fmt(red['min'], '.1f')} % | {paper['min']} % |",
             f"| reduction of η_max | {_fmt(red['max'], '.1f')} % | {paper['max']} % |",
         ]
-    lines += paper_threshold.markdown(r.get("threshold"), r.get("repeatability"))
+    lines += paper_checks.markdown(
+        r.get("threshold"), r.get("repeatability"), r.get("validation_points")
+    )
     loops = r.get("loops", {})
     lines += ["", "## Loops (the points nearest 400 N)", ""]
     lines += [f"![{k} loop](figures/{v})" for k, v in loops.items() if v]

@@ -32,6 +32,11 @@ def test_paper_smoke_one_point_per_hinge(tmp_path, capsys):
     assert paper_dir["eta_change"] == pytest.approx(0.7572, abs=5e-4)  # the paper's 75.72 %
     assert paper_dir["same_direction"]
     assert "threshold" not in report  # one point per hinge: no surface to map
+    # the paper's 400 N validation values are listed; ours only where the sweep ran 400 N
+    val = {(v["hinge"], v["quantity"]): v for v in report["validation_points"]}
+    assert val[("general", "eta")]["paper_test"] == pytest.approx(0.0933)
+    assert val[("modified", "displacement_at_peak")]["paper_fe"] == pytest.approx(0.0250)
+    assert val[("modified", "eta")]["ours"] is None  # 100 N only here
     text = (tmp_path / "report.md").read_text()
     for needle in ("General hinge (Table 1)", "Modified hinge (Table 4)", "Why ours differs",
                    "Repeatability and η (Table 7)", "two points"):  # fmt: skip
@@ -76,3 +81,17 @@ def test_paper_quick_fits_both_surfaces_and_draws_them(tmp_path, capsys):
         assert 0.0 <= t[hinge]["ours"]["fraction_below"] <= 1.0
     assert "Where η < 0.05" in (tmp_path / "report.md").read_text()
     assert report["wall_s"] < 600
+
+
+def test_validation_points_take_ours_at_400_n_from_the_sweep_tables(tmp_path):
+    from studies.paper_checks import validation_points
+
+    head = "point_id,status,amplitude_N,{x},disp_at_peak_mm,eta\n"
+    g, m = tmp_path / "g.csv", tmp_path / "m.csv"
+    g.write_text(head.format(x="clearance_mm") + "1,ok,400,0.1,0.5,0.9\n2,ok,400,0,0.004,0.015\n")
+    m.write_text(head.format(x="preload_N") + "1,failed,400,0,,\n")
+    rows = {(r["hinge"], r["quantity"]): r for r in validation_points({"general": g, "modified": m})}
+    assert rows[("general", "displacement_at_peak")]["ours"] == 0.004  # Δr 0, not Δr 0.1
+    assert rows[("general", "eta")]["ours"] == 0.015
+    assert rows[("modified", "eta")]["ours"] is None  # a failed point is no value
+    assert rows[("modified", "eta")]["paper_fe"] == 0.0488
