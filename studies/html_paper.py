@@ -141,6 +141,11 @@ def paper_study_report(folder: Path, report_dir: Path) -> ReportBody:
         ("command", f"hingelab paper{flags} --mu {study['mu']}"),
         ("points", ", ".join(counts)),
         ("wall time", f"{fmt(r['wall_s'])} s"),
+        (
+            "points computed in",
+            ", ".join(f"{n} {fmt(s.get('compute_s'))} s" for n, s in r["sweeps"].items())
+            + " (their own wall times when they ran, setup included)",
+        ),
     ]
     ranges = []
     for name, label in (("general", "general η (points)"), ("modified", "modified η (points)")):
