@@ -92,3 +92,27 @@ def test_bearing_set_from_a_finer_mesh_with_a_hidden_frame(tmp_path, capsys):
         extra = cmp.measured["disp_at_peak_mm"] - cmp.model["disp_at_peak_mm"]  # [mm]
         frame = c_f * cmp.case.amplitude_n
         assert extra == pytest.approx(frame, rel=0.35), (cmp.case.case_id, extra, frame)
+
+
+@pytest.mark.slow
+def test_diagnose_names_interface_friction_hidden_in_bearing_data(tmp_path):
+    """Loops of the bearing hinge whose fits slip (μ_interface 0.3, hidden) from synth's
+    finer mesh, judged against the bonded model (which has no loop): diagnose must name
+    interface_friction and fit its μ near 0.3; frame_compliance (which cannot make a loop)
+    must not explain them."""
+    from validation.diagnose import DiagnoseSettings, diagnose
+    from validation.measurements import read_measurement_set
+    from validation.synth import synthesize
+
+    out = tmp_path / "set"
+    hidden = {"interface_friction": {"mu_interface": 0.3}}
+    cases = design_cases(parse_design("0:300;100:150;200:400", "preload_n"), "bearing")
+    synthesize(_bonded(), hidden, cases, SynthSettings(seed=7), out)
+    fast = DiagnoseSettings(grid_points=5, grid_decades=2.0, refine_iter=6, increments_per_stage=8)
+    d = diagnose(_bonded(), read_measurement_set(out), fast)
+    assert d.verdict in ("effect_missing", "indistinguishable"), d.text()
+    assert d.effects[0] == "interface_friction", d.text()
+    fit = next(c for c in d.candidates if c.name == "interface_friction")
+    assert fit.value == pytest.approx(0.3, rel=0.3), d.text()
+    frame = next(c for c in d.candidates if c.name == "frame_compliance")
+    assert frame.chi2 > 10 * fit.chi2
