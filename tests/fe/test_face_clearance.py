@@ -186,3 +186,14 @@ def test_held_clevis_keeps_the_pin_centred_inside_a_contact_window(loose):
     assert r.result.slides == ()
     for state in r.result.states:
         assert float(state.alpha[0]) == -CLEARANCE  # centred: −Δr from the tension position
+
+
+def test_loop_files_of_a_sliding_cycle(slid, tmp_path):
+    """The loop CSV with the free play is the grips' path; the figure is drawn on it."""
+    pytest.importorskip("matplotlib")
+    from fe.hinge.report import write_loop_csv, write_loop_png
+
+    csv_path = write_loop_csv(slid.result, tmp_path / "loop.csv", with_free_play=True)
+    rows = csv_path.read_text().splitlines()
+    assert len(rows) == len(slid.result.increments) + 2  # header and the origin
+    assert write_loop_png(slid.result, tmp_path / "loop.png").stat().st_size > 0
