@@ -14,7 +14,7 @@ How it is computed (``run_sliding``), with the two touching configurations of
 * **start**: the pin centred in its holes, the clevis centred (``δ = −2Δr`` in the
   tension configuration's coordinates), nothing touching; the clamp is applied with the
   first load increment, as at Δr = 0.
-* **force control** (``fe.hinge.cycle._advance``) in the current configuration while the
+* **force control** (as ``fe.hinge.cycle._advance``) in the current configuration while the
   target is within what the faces hold, or on the side where the pin is engaged; the pin
   may open and float (``p = 0`` on all its points), the faces then carry the load alone.
   Until the first slide the faces alone are solved (``_held``) and the pin stays centred.
@@ -60,7 +60,7 @@ from fe.contact import (
     solve_increment,
 )
 from fe.hinge.condensed import Condensed
-from fe.hinge.cycle import _advance, _check_window, _record
+from fe.hinge.cycle import _check_window, _record
 from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
 from fe.hinge.result import CycleResult, Increment
 from fe.hinge.system import GRIP, N_PIN_MODES, N_RIGID, HingeSystem
@@ -307,7 +307,7 @@ def _forced(
     partial: Callable[[], CycleResult],
     previous: tuple[float, ContactState] | None,
 ) -> list[tuple[float, ContactState, IncrementResult]]:
-    """Force control from ``f_from`` to ``f_to`` (``fe.hinge.cycle._advance``), every sub-step kept.
+    """Force control from ``f_from`` to ``f_to`` (as ``fe.hinge.cycle._advance``), every sub-step kept.
 
     A cut-back's sub-steps are returned (and recorded) one by one, so the loop has their
     points and its trapezoidal area matches their works exactly.
@@ -318,12 +318,22 @@ def _forced(
         st, f0, prev = state, f_from, previous
         for k in range(1, n_sub + 1):
             f = f_from + (f_to - f_from) * k / n_sub
-            new, res = _advance(
-                cond, st, f0, f, contact, dataclasses.replace(settings, max_cutbacks=0),
-                index + len(out), partial, prev,
+            e = np.zeros(N_RIGID)
+            e[GRIP] = -f  # clevis equilibrium: G_δᵀ p = −F
+            start = None
+            if prev is not None and prev[0] != f0:  # as _advance: extrapolate on the branch
+                t = (f - f0) / (f0 - prev[0])
+                p, a = np.asarray(st.p), np.asarray(st.alpha)
+                start = (
+                    p + t * (p - np.asarray(prev[1].p)),
+                    a + t * (a - np.asarray(prev[1].alpha)),
+                )
+            res = solve_increment(
+                cond.W, cond.w0, st, contact, G=cond.G, e=e, increment=index + len(out),
+                start=start,
             )  # fmt: skip
-            out.append((f, new, res))
-            st, f0, prev = new, f, (f0, st)
+            out.append((f, res.state, res))
+            st, f0, prev = res.state, f, (f0, st)
         return out
 
     what = f"increment {index} (F {f_from:.4g} → {f_to:.4g} N)"
