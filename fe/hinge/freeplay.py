@@ -28,7 +28,7 @@ How it is computed (``run_sliding``), with the two touching configurations of
   shifted by ``(s_old − s_new)·2Δr``, so the machine displacement ``δ + s·2Δr`` is
   continuous). Where the pin first touches in the new configuration is a linear program
   (the grip's extreme position, over the pin's rigid positions, with every pin gap ≥ 0
-  under the faces' sliding forces, ``engagement``). The slide is then one
+  under the faces' sliding forces, ``fe.hinge.crossing.engagement``). The slide is then one
   displacement-controlled increment of the faces alone (the pin carries nothing) to that
   position: the friction work of that increment is the rectangle.
 * **force control** in the new configuration from there.
@@ -49,7 +49,6 @@ from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import linprog
 
 from cad.errors import ConvergenceError
 from fe.contact import (
@@ -60,6 +59,14 @@ from fe.contact import (
     solve_increment,
 )
 from fe.hinge.condensed import Condensed
+from fe.hinge.crossing import (
+    consistent_w,
+    engagement,
+    face_mask,
+    face_rows,
+    status_counts,
+    switched_state,
+)
 from fe.hinge.cycle import _check_window, _record
 from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
 from fe.hinge.result import CycleResult, Increment
@@ -80,21 +87,6 @@ MAX_APPROACH_STEPS = 40
 """Doublings of the grip step before the faces must be in full slip."""
 
 
-def face_mask(cond: Condensed) -> npt.NDArray[np.bool_]:
-    """True for the face points of a configuration (``fe.hinge.faces.FACE_PAIR_CODE`` < 0)."""
-    return np.asarray(cond.geo.pair) < 0
-
-
-def has_faces(cond: Condensed) -> bool:
-    """True if the configuration has face points."""
-    return bool(np.any(face_mask(cond)))
-
-
-def _rows(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.int64]:
-    idx = np.flatnonzero(mask)
-    return (3 * idx[:, None] + np.arange(3)).ravel().astype(np.int64)
-
-
 @dataclasses.dataclass(frozen=True)
 class _Step:
     """A converged step: the full state of its configuration and the works of the step."""
@@ -104,20 +96,6 @@ class _Step:
     normal_work: float
     iterations: int
     n_counts: tuple[int, int, int]
-
-
-def _consistent(cond: Condensed, p: FloatArray, alpha: FloatArray) -> FloatArray:
-    """``w = W p + G α + w0``, shape (m, 3)."""
-    w = cond.W @ np.ravel(p) + cond.G @ alpha
-    return np.asarray(w.reshape(-1, 3) + np.asarray(cond.w0), dtype=np.float64)
-
-
-def _counts(status: npt.NDArray[np.int8]) -> tuple[int, int, int]:
-    return (
-        int(np.sum(status == ContactStatus.OPEN)),
-        int(np.sum(status == ContactStatus.STICK)),
-        int(np.sum(status == ContactStatus.SLIP)),
-    )
 
 
 def _displaced(
@@ -136,7 +114,7 @@ def _displaced(
     """
     m = len(cond.geo.slave)
     sel = np.ones(m, dtype=bool) if mask is None else mask
-    rows = _rows(sel)
+    rows = face_rows(sel)
     W = np.asarray(cond.W)[np.ix_(rows, rows)]
     G = np.asarray(cond.G)[rows]
     k = N_PIN_MODES if mask is None else 0
@@ -153,7 +131,7 @@ def _displaced(
     alpha = np.array(state.alpha, dtype=np.float64, copy=True)
     alpha[:k] = res.state.alpha
     alpha[GRIP] = delta_mm
-    w = _consistent(cond, p, alpha)
+    w = consistent_w(cond, p, alpha)
     w[sel] = res.state.w  # the solver's own (exact) w of the solved points
     status = np.zeros(m, dtype=np.int8)
     status[sel] = res.state.status
@@ -162,7 +140,7 @@ def _displaced(
         float(np.sum(res.friction_work)),
         float(np.sum(res.normal_work)),
         res.iterations,
-        _counts(status),
+        status_counts(status),
     )
 
 
@@ -177,7 +155,7 @@ def _held(
     """
     m = len(cond.geo.slave)
     sel = face_mask(cond)
-    rows = _rows(sel)
+    rows = face_rows(sel)
     W = np.asarray(cond.W)[np.ix_(rows, rows)]
     G = np.asarray(cond.G)[rows][:, [GRIP]]
     prev = ContactState(
@@ -192,7 +170,7 @@ def _held(
     p[sel] = res.state.p
     alpha = np.array(state.alpha, dtype=np.float64, copy=True)
     alpha[GRIP] = res.state.alpha[0]
-    w = _consistent(cond, p, alpha)
+    w = consistent_w(cond, p, alpha)
     w[sel] = res.state.w
     status = np.zeros(m, dtype=np.int8)
     status[sel] = res.state.status
@@ -201,7 +179,7 @@ def _held(
         float(np.sum(res.friction_work)),
         float(np.sum(res.normal_work)),
         res.iterations,
-        _counts(status),
+        status_counts(status),
     )
 
 
@@ -243,57 +221,10 @@ def slide_force(cond: Condensed, contact: ContactSettings, direction: int) -> fl
     start = ContactState.initial(
         len(cond.geo.slave),
         N_RIGID,
-        w=_consistent(cond, np.zeros((len(cond.geo.slave), 3)), np.zeros(N_RIGID)),
+        w=consistent_w(cond, np.zeros((len(cond.geo.slave), 3)), np.zeros(N_RIGID)),
     )
     step = _displaced(cond, start, direction * travel, contact, faces, 0)
     return abs(float(-np.asarray(cond.G)[:, GRIP] @ np.ravel(step.state.p)))
-
-
-def engagement(cond: Condensed, p: FloatArray, direction: int) -> tuple[float, FloatArray]:
-    """Where the pin first touches as the clevis slides ``direction``: (δ [mm], pin modes (6,)).
-
-    The pin carries nothing (``p`` is zero on its points); its gaps under the faces' forces
-    ``p`` are ``g = (W p + w0)_n + G_pin α + G_δ δ``. The first touch is the extreme
-    ``direction · δ`` for which some pin position keeps every gap ≥ 0 (a linear program).
-    """
-    pin = ~face_mask(cond)
-    rows_n = 3 * np.flatnonzero(pin)
-    base = (np.asarray(cond.W)[rows_n] @ np.ravel(p)) + np.asarray(cond.w0)[pin, 0]
-    A = np.asarray(cond.G)[rows_n][:, : N_PIN_MODES + 1]
-    c = np.zeros(N_PIN_MODES + 1)
-    c[GRIP] = -float(direction)
-    bounds = [(-1.0, 1.0)] * (N_PIN_MODES + 1)
-    bounds[2] = bounds[5] = (0.0, 0.0)  # axial slide and spin of the pin: no gap changes
-    lp = linprog(c, A_ub=-A, b_ub=base, bounds=bounds, method="highs")
-    if lp.status != 0:
-        raise ConvergenceError(
-            f"pin engagement: linear program failed ({lp.message})",
-            increment=0,
-            iteration=0,
-            residual=float("nan"),
-        )
-    x = np.asarray(lp.x, dtype=np.float64)
-    return float(x[GRIP]), x[:N_PIN_MODES]
-
-
-def _switched(old: Condensed, new: Condensed, state: ContactState, shift_mm: float) -> ContactState:
-    """The state carried into another configuration: faces as they are, pin points open.
-
-    ``shift_mm`` is added to the grip coordinate (``(s_old − s_new)·2Δr``); the pin's modes
-    stay (it carries nothing). The face points' relative displacement moves with the grip.
-    """
-    fo, fn = face_mask(old), face_mask(new)
-    m = len(new.geo.slave)
-    p = np.zeros((m, 3))
-    p[fn] = np.asarray(state.p)[fo]
-    alpha = np.array(state.alpha, dtype=np.float64, copy=True)
-    alpha[GRIP] += shift_mm
-    w = _consistent(new, p, alpha)
-    G_f = np.asarray(new.G)[_rows(fn), GRIP].reshape(-1, 3)
-    w[fn] = np.asarray(state.w)[fo] + G_f * shift_mm  # the old w moved rigidly
-    status = np.zeros(m, dtype=np.int8)
-    status[fn] = np.asarray(state.status)[fo]
-    return ContactState(p, w, status, alpha)
 
 
 def _forced(
@@ -375,7 +306,7 @@ def _approach(
                 works += (r.friction_work, r.normal_work)
                 iters += r.iterations
                 st = r.state
-            return _Step(st, float(works[0]), float(works[1]), iters, _counts(st.status))
+            return _Step(st, float(works[0]), float(works[1]), iters, status_counts(st.status))
 
         what = f"approach {idx} (δ → {to:.6g} mm)"
         step = with_cutbacks(
@@ -415,7 +346,7 @@ def _slide(
     One displacement-controlled increment of the faces alone (the pin carries nothing);
     the pin is placed where the linear program of ``engagement`` puts it.
     """
-    carried = _switched(old, new, state, shift_mm)
+    carried = switched_state(old, new, state, shift_mm)
     fn = face_mask(new)
     trial = _displaced(new, carried, 0.0, contact, fn, index)  # the faces' sliding forces
     delta_e, pin_modes = engagement(new, np.asarray(trial.state.p), direction)
@@ -423,7 +354,7 @@ def _slide(
     alpha = np.array(slid.state.alpha, dtype=np.float64, copy=True)
     alpha[:N_PIN_MODES] = pin_modes
     p = np.asarray(slid.state.p)
-    w = _consistent(new, p, alpha)
+    w = consistent_w(new, p, alpha)
     w[fn] = np.asarray(slid.state.w)[fn]
     return dataclasses.replace(slid, state=ContactState(p, w, slid.state.status, alpha))
 
@@ -445,7 +376,7 @@ def run_sliding(
     alpha0 = np.zeros(N_RIGID)
     alpha0[0], alpha0[GRIP] = -0.5 * half, -half  # pin and clevis centred
     p0 = np.zeros((m, 3))
-    state = ContactState(p0, _consistent(cond, p0, alpha0), np.zeros(m, dtype=np.int8), alpha0)
+    state = ContactState(p0, consistent_w(cond, p0, alpha0), np.zeros(m, dtype=np.int8), alpha0)
     incs: list[Increment] = []
     states: list[ContactState] = []
     slides: list[int] = []

@@ -13,9 +13,9 @@ import pytest
 
 from cad.general import GeneralHingeParams, make_general_hinge
 from fe.effects import REGISTRY, run_cycle_with_effects
+from fe.hinge.crossing import face_mask
 from fe.hinge.cycle import CycleSettings, configurations, run_cycle
 from fe.hinge.faces import face_normal_forces
-from fe.hinge.freeplay import face_mask
 from fe.hinge.system import build_system
 from mesh.settings import MeshSettings
 
