@@ -1,7 +1,8 @@
 """The paper's study with our own FE: both hinges, their response surfaces, beside the paper.
 
 ``hingelab paper --out DIR [--quick]`` runs, as two sweeps (``studies.sweep``: traced,
-resumable, every point stored by its content key):
+resumable, every point stored by its content key) — at full size the two shipped study files
+``studies/examples/paper_general_5x5.toml`` and ``paper_modified_5x5.toml`` (``STUDY_FILES``):
 
 * the general hinge, clearance 0–0.4 mm × Fg 100–500 N (5 × 5; ``--quick``: 3 × 3 on the
   coarse mesh), and
@@ -43,6 +44,10 @@ QUICK_BEARING_MESH: dict[str, Any] = {
 }
 """The bearing hinge's coarse mesh (40k nodes; the tests use it too)."""
 
+STUDY_FILES = {"general": "paper_general_5x5.toml", "modified": "paper_modified_5x5.toml"}
+"""The full run's two designs, shipped in ``studies/examples`` (a user can run either alone
+with ``hingelab study``)."""
+
 PRINTED_REDUCTION = {"min": 54.67, "max": 32.57}
 """The paper's reductions of η_min and η_max from the general to the modified hinge [%]."""
 
@@ -66,7 +71,14 @@ class PaperStudy:
     points: int = 0
 
     def sweeps(self) -> dict[str, Any]:
-        """The two sweeps' settings, by hinge (``general``, ``modified``)."""
+        """The two sweeps' settings, by hinge (``general``, ``modified``).
+
+        The full run is the two shipped study files (``STUDY_FILES``) with this study's μ,
+        interfaces and workers; ``--quick`` and ``--points`` run the same designs on the
+        coarse meshes or fewer points.
+        """
+        if not self.quick and not self.points:
+            return {name: self._from_file(name) for name in STUDY_FILES}
         from mesh.settings import MeshSettings
         from studies.sweep import SweepSettings
 
@@ -90,6 +102,21 @@ class PaperStudy:
                 interfaces=self.interfaces,
             ),
         }  # fmt: skip
+
+
+    def _from_file(self, name: str) -> Any:
+        """One shipped study file's sweep, with this study's μ, interfaces and workers."""
+        from cad.bearing import BearingHingeParams, Interfaces
+        from studies.study_file import read_study
+
+        study = read_study(Path(__file__).parent / "examples" / STUDY_FILES[name])
+        spec = study.spec
+        spec = dataclasses.replace(spec, cycle=dataclasses.replace(spec.cycle, mu=self.mu))
+        if isinstance(spec.hinge, BearingHingeParams):
+            hinge = dataclasses.replace(spec.hinge, interfaces=Interfaces(self.interfaces))
+            spec = dataclasses.replace(spec, hinge=hinge)
+        settings = dataclasses.replace(study, spec=spec).sweep_settings(workers=self.workers)
+        return dataclasses.replace(settings, study=f"paper_{name}")
 
 
 def _paper_table(case: Any) -> dict[tuple[float, float], float]:

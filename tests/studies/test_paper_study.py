@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
+import studies
 from studies.cli import main
 
 
@@ -90,8 +92,34 @@ def test_validation_points_take_ours_at_400_n_from_the_sweep_tables(tmp_path):
     g, m = tmp_path / "g.csv", tmp_path / "m.csv"
     g.write_text(head.format(x="clearance_mm") + "1,ok,400,0.1,0.5,0.9\n2,ok,400,0,0.004,0.015\n")
     m.write_text(head.format(x="preload_N") + "1,failed,400,0,,\n")
-    rows = {(r["hinge"], r["quantity"]): r for r in validation_points({"general": g, "modified": m})}
+    rows = {
+        (r["hinge"], r["quantity"]): r for r in validation_points({"general": g, "modified": m})
+    }
     assert rows[("general", "displacement_at_peak")]["ours"] == 0.004  # Δr 0, not Δr 0.1
     assert rows[("general", "eta")]["ours"] == 0.015
     assert rows[("modified", "eta")]["ours"] is None  # a failed point is no value
     assert rows[("modified", "eta")]["paper_fe"] == 0.0488
+
+
+def test_the_full_run_is_the_two_shipped_study_files():
+    """``hingelab paper`` (not quick) runs studies/examples/paper_*_5x5.toml: the paper's grids,
+    with the command's μ and interfaces applied on top; --quick stays on the coarse meshes."""
+    from studies.paper_study import CLEARANCES, GRID, PRELOADS, PaperStudy
+    from studies.study_file import read_study
+
+    sweeps = PaperStudy().sweeps()
+    g, m = sweeps["general"], sweeps["modified"]
+    assert {(p.clearance_mm, p.amplitude_n) for p in g.points()} == {
+        (c, a) for c in CLEARANCES for a in GRID
+    }
+    assert {(p.preload_n, p.amplitude_n) for p in m.points()} == {
+        (f, a) for f in PRELOADS for a in GRID
+    }
+    shipped = read_study(Path(studies.__file__).parent / "examples" / "paper_modified_5x5.toml")
+    assert m.spec() == shipped.spec  # the file as it is, at the command's defaults
+    assert m.spec().hinge.interfaces.value == "contact"
+    other = PaperStudy(mu=0.3, interfaces="bonded").sweeps()["modified"].spec()
+    assert other.cycle.mu == 0.3
+    assert other.hinge.interfaces.value == "bonded"
+    quick = PaperStudy(quick=True).sweeps()["general"]
+    assert quick.spec().mesh.size_mm > g.spec().mesh.size_mm
