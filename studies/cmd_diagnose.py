@@ -30,6 +30,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         default=0.01,
         help="false-alarm probability, in (0, 0.5] (default 0.01)",
     )
+    p.add_argument(
+        "--candidates",
+        default=None,
+        metavar="NAME[,NAME]",
+        help="try only these effects (default: every one that applies to the model's hinge)",
+    )
     p.set_defaults(func=run)
 
 
@@ -43,6 +49,8 @@ def run(args: argparse.Namespace) -> int:
 
     if not 0.0 < args.alpha <= 0.5:  # 'not' also refuses NaN
         raise ParameterError(f"--alpha must be in (0, 0.5], got {args.alpha}")
+    if args.candidates is not None and not args.candidates.strip(", "):
+        raise ParameterError(f"--candidates must name at least one effect, got {args.candidates!r}")
     spec = read_model(args.model)
     data = read_measurement_set(args.data)
     settings = DiagnoseSettings(
@@ -50,6 +58,9 @@ def run(args: argparse.Namespace) -> int:
         alpha=args.alpha,
         increments_per_stage=args.increments,
         clearance_increments=2 * args.increments,
+        candidates=None
+        if args.candidates is None
+        else tuple(n.strip() for n in args.candidates.split(",") if n.strip()),
     )
     result = diagnose(spec, data, settings)
     if args.json:

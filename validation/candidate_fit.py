@@ -43,6 +43,9 @@ class DiagnoseSettings:
             unless the data would detect a common relative error of this size in the loop
             area / η (default 0.5: an error of a half moves a design across the paper's
             η = 0.05 boundary over most of its range).
+        candidates: Registry effects to try (None: every one that applies); the others are
+            listed as skipped. Fewer candidates cost fewer cycles and a milder multiple-test
+            correction (the significance level is split over those tried).
     """
 
     features: FeatureSettings = field(default_factory=FeatureSettings)
@@ -56,6 +59,7 @@ class DiagnoseSettings:
     clearance_increments: int | None = 16
     power: float = 0.8
     tell_rel_error: float = 0.5
+    candidates: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True)

@@ -54,6 +54,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy import stats
 
+from cad.errors import ParameterError
 from fe.service.spec import INTERFACE_FRICTION
 from validation.candidate_fit import (
     CandidateFit,
@@ -476,6 +477,11 @@ def diagnose(
     limit = float(stats.chi2.ppf(1.0 - s.alpha, n))
     skipped: dict[str, str] = {}
     names = []
+    unknown = sorted(set(s.candidates or ()) - set(REGISTRY))
+    if unknown:
+        raise ParameterError(
+            f"candidates: unknown effect(s) {unknown}; known: {', '.join(REGISTRY)}"
+        )
     for name in REGISTRY:
         if name in spec.effects:
             skipped[name] = "already in the model"
@@ -494,6 +500,8 @@ def diagnose(
             )
         elif name == INTERFACE_FRICTION and _frictional_fits(spec):
             skipped[name] = "the fits are contacts already (interfaces = 'contact'): calibrate mu"
+        elif s.candidates is not None and name not in s.candidates:
+            skipped[name] = "not among the candidates asked for"
         else:
             names.append(name)
     fits = sorted(

@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+from cad.errors import ParameterError
 from studies.cli import main
 
 MODEL_MESH = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2),)}
@@ -142,10 +143,26 @@ def test_diagnose_names_a_frame_compliance_hidden_in_bearing_loops(tmp_path):
                    header="force_N,displacement_mm", comments="")  # fmt: skip
         rows.append(f"{cid},bearing,0,{fp:g},{fg:g},{cid}.csv")
     _cases_csv(data / "cases.csv", rows)
-    fast = DiagnoseSettings(grid_points=5, grid_decades=2.5, refine_iter=4, increments_per_stage=8)
+    # the loop effect only: interface_friction (a fits cycle per case and grid value, minutes)
+    # is the other candidate for the bearing hinge; tests/validation/test_synth_bearing.py
+    # diagnoses it
+    fast = DiagnoseSettings(
+        grid_points=5,
+        grid_decades=2.5,
+        refine_iter=4,
+        increments_per_stage=8,
+        candidates=("frame_compliance",),
+    )
     d = diagnose(_bonded(MODEL_MESH, 8), read_measurement_set(data), fast)
     assert d.verdict == "effect_missing", d.text()
     assert d.effects == ("frame_compliance",)
     assert d.candidates[0].value == pytest.approx(2e-5, rel=0.2)
     assert "pin contacts" in d.skipped["face_friction"]
+    assert d.skipped["interface_friction"] == "not among the candidates asked for"
+    with pytest.raises(ParameterError, match=r"unknown effect\(s\) \['frame'\]"):
+        diagnose(
+            _bonded(MODEL_MESH, 8),
+            read_measurement_set(data),
+            DiagnoseSettings(candidates=("frame",)),
+        )
     assert any("F_p = 200 N" in line for line in d.pattern)  # the bearing's design variable
