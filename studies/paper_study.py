@@ -390,9 +390,12 @@ def report_markdown(r: dict[str, Any]) -> str:
         "Hertz balls); with frictional fits it dissipates through the fits, and η rises with the "
         "preload as in Table 4 (docs/bearing_model.md §5).",
         "* The general hinge with clearance: our η is 0.001 where Table 1 has 0.035–0.084. Our "
-        "cycle removes the free play and crosses it without friction on the pin's faces "
-        "(docs/paper_validation.md, issue 16's face-friction item); until that is modelled, a "
-        "reduction computed against our general hinge with clearance says little.",
+        "default hinge has no axial clamp, so it crosses the free play with nothing rubbing. "
+        "With a clamp (the `face_friction` effect, docs/face_friction_clearance.md) the faces "
+        "hold the clevis until they slip and it slides across the free play: η 0.06–0.38 at "
+        "300 N per face (coarse mesh). The paper states no clamp, so none is assumed here; "
+        "`diagnose` on Table 1's clearance rows asks which one (docs/paper_validation.md). "
+        "Until then a reduction computed against our general hinge with clearance says little.",
         "* The paper's own Table 1 fit puts its η = 0.05 boundary elsewhere than its text "
         "(0.157 vs 0.2248 mm: `hingelab rsm paper`).",
     ]
