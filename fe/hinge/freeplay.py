@@ -98,6 +98,30 @@ class _Step:
     n_counts: tuple[int, int, int]
 
 
+def _scattered(
+    cond: Condensed, sel: npt.NDArray[np.bool_], res: IncrementResult, alpha: FloatArray
+) -> _Step:
+    """The full step of a sub-problem solved on the ``sel`` points at rigid amplitudes ``alpha``.
+
+    Points outside ``sel`` keep ``p = 0`` and get the consistent ``w``; the solved points keep
+    the solver's own (exact) ``w``.
+    """
+    m = len(cond.geo.slave)
+    p = np.zeros((m, 3))
+    p[sel] = res.state.p
+    w = consistent_w(cond, p, alpha)
+    w[sel] = res.state.w
+    status = np.zeros(m, dtype=np.int8)
+    status[sel] = res.state.status
+    return _Step(
+        ContactState(p, w, status, alpha),
+        float(np.sum(res.friction_work)),
+        float(np.sum(res.normal_work)),
+        res.iterations,
+        status_counts(status),
+    )
+
+
 def _displaced(
     cond: Condensed,
     state: ContactState,
@@ -126,22 +150,10 @@ def _displaced(
         np.asarray(state.alpha)[:k],
     )
     res = solve_increment(W, w_free, prev, contact, G=G[:, :k], e=np.zeros(k), increment=index)
-    p = np.zeros((m, 3))
-    p[sel] = res.state.p
     alpha = np.array(state.alpha, dtype=np.float64, copy=True)
     alpha[:k] = res.state.alpha
     alpha[GRIP] = delta_mm
-    w = consistent_w(cond, p, alpha)
-    w[sel] = res.state.w  # the solver's own (exact) w of the solved points
-    status = np.zeros(m, dtype=np.int8)
-    status[sel] = res.state.status
-    return _Step(
-        ContactState(p, w, status, alpha),
-        float(np.sum(res.friction_work)),
-        float(np.sum(res.normal_work)),
-        res.iterations,
-        status_counts(status),
-    )
+    return _scattered(cond, sel, res, alpha)
 
 
 def _held(
@@ -153,7 +165,6 @@ def _held(
     leaving it out keeps it centred (in the whole problem it would float to the
     minimum-norm position, against the far side of the clevis' holes).
     """
-    m = len(cond.geo.slave)
     sel = face_mask(cond)
     rows = face_rows(sel)
     W = np.asarray(cond.W)[np.ix_(rows, rows)]
@@ -166,21 +177,9 @@ def _held(
     )
     w_free = np.asarray(cond.w0)[sel]
     res = solve_increment(W, w_free, prev, contact, G=G, e=np.array([-force_n]), increment=index)
-    p = np.zeros((m, 3))
-    p[sel] = res.state.p
     alpha = np.array(state.alpha, dtype=np.float64, copy=True)
     alpha[GRIP] = res.state.alpha[0]
-    w = consistent_w(cond, p, alpha)
-    w[sel] = res.state.w
-    status = np.zeros(m, dtype=np.int8)
-    status[sel] = res.state.status
-    return _Step(
-        ContactState(p, w, status, alpha),
-        float(np.sum(res.friction_work)),
-        float(np.sum(res.normal_work)),
-        res.iterations,
-        status_counts(status),
-    )
+    return _scattered(cond, sel, res, alpha)
 
 
 def _held_steps(
