@@ -34,7 +34,7 @@ import numpy.typing as npt
 from cad.errors import MeshQualityError
 from cad.materials import Material
 from cad.surfaces import Sphere, Torus
-from mesh.hexmesh import HexMesh
+from mesh.hexmesh import HexMesh, structured_hexes
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -114,26 +114,7 @@ def _block(xs: FloatArray, ys: FloatArray, zs: FloatArray) -> tuple[FloatArray, 
     grids = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), np.arange(nz + 1), indexing="ij")
     i, j, k = (np.asarray(a.transpose(2, 1, 0).ravel(), dtype=np.int64) for a in grids)
     nodes = np.column_stack([xs[i], ys[j], zs[i, j, k]]).astype(np.float64)
-
-    def nid(a: IntArray, b: IntArray, c: IntArray) -> IntArray:
-        return a + (nx + 1) * (b + (ny + 1) * c)
-
-    ei, ej, ek = (
-        a.transpose(2, 1, 0).ravel()
-        for a in np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
-    )
-    corners = (
-        (0, 0, 0),
-        (1, 0, 0),
-        (1, 1, 0),
-        (0, 1, 0),
-        (0, 0, 1),
-        (1, 0, 1),
-        (1, 1, 1),
-        (0, 1, 1),
-    )
-    hexes = np.stack([nid(ei + a, ej + b, ek + c) for a, b, c in corners], axis=1)
-    return nodes, hexes.astype(np.int64)
+    return nodes, structured_hexes(nx, ny, nz)
 
 
 def _faces(nx: int, ny: int, nz: int, top: bool) -> IntArray:

@@ -34,6 +34,38 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 
+HEX_CORNERS = (
+    (0, 0, 0),
+    (1, 0, 0),
+    (1, 1, 0),
+    (0, 1, 0),
+    (0, 0, 1),
+    (1, 0, 1),
+    (1, 1, 1),
+    (0, 1, 1),
+)
+"""(di, dj, dk) of a hexahedron's eight nodes in the order of ``HexMesh.hexes`` (gmsh/VTK)."""
+
+
+def structured_hexes(nx: int, ny: int, nz: int) -> IntArray:
+    """Connectivity of an nx × ny × nz block of cells, shape (nx ny nz, 8).
+
+    Node (i, j, k) is ``i + (nx + 1) (j + (ny + 1) k)`` and cell (i, j, k) is row
+    ``i + nx (j + ny k)`` (i fastest), its nodes in ``HEX_CORNERS`` order.
+    """
+    grid = np.meshgrid(
+        np.arange(nz, dtype=np.int64),
+        np.arange(ny, dtype=np.int64),
+        np.arange(nx, dtype=np.int64),
+        indexing="ij",
+    )
+    ek, ej, ei = (a.ravel() for a in grid)
+    return np.stack(
+        [(ei + a) + (nx + 1) * ((ej + b) + (ny + 1) * (ek + c)) for a, b, c in HEX_CORNERS],
+        axis=1,
+    )
+
+
 def _frozen(a: npt.ArrayLike, dtype: type) -> npt.NDArray[np.generic]:
     arr: npt.NDArray[np.generic] = np.array(a, dtype=dtype, copy=True)
     arr.setflags(write=False)

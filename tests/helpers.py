@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from cad.materials import Material
-from mesh.hexmesh import HexMesh
+from mesh.hexmesh import HexMesh, structured_hexes
 
 TEST_MATERIAL = Material("test steel", 200_000.0, 0.3)
 
@@ -58,29 +58,9 @@ def box_mesh(
         shift = rng.uniform(-1.0, 1.0, size=(int(interior.sum()), 3)) * distort * min(hx, hy, hz)
         nodes[interior] += shift
 
-    def nid(a, b, c):
-        return a + (nx + 1) * (b + (ny + 1) * c)
-
-    ei, ej, ek = (
-        a.transpose(2, 1, 0).ravel()
-        for a in np.meshgrid(
-            np.arange(nx, dtype=np.int64),
-            np.arange(ny, dtype=np.int64),
-            np.arange(nz, dtype=np.int64),
-            indexing="ij",
-        )
-    )
-    corners = [
-        (0, 0, 0),
-        (1, 0, 0),
-        (1, 1, 0),
-        (0, 1, 0),
-        (0, 0, 1),
-        (1, 0, 1),
-        (1, 1, 1),
-        (0, 1, 1),
-    ]
-    hexes = np.stack([nid(ei + a, ej + b, ek + c) for a, b, c in corners], axis=1)
+    hexes = structured_hexes(nx, ny, nz)
+    e = np.arange(len(hexes))
+    ei, ej, ek = e % nx, (e // nx) % ny, e // (nx * ny)  # cell (i, j, k), i fastest
 
     on_face = {
         "xmin": ei == 0,
