@@ -99,7 +99,7 @@ class EffectContext:
     @staticmethod
     def contact_of(settings: CycleSettings) -> ContactSettings:
         """Return the contact-solver settings of a cycle's settings."""
-        return ContactSettings(mu=settings.mu, tol=settings.tol, max_iter=settings.max_iter)
+        return settings.contact()
 
 
 @dataclass(frozen=True)

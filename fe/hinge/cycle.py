@@ -138,7 +138,7 @@ def _run(
         from fe.hinge.freeplay import run_sliding  # clamped faces: the free play is slid
 
         return run_sliding(system, clearance_mm, settings, configs, progress)
-    contact = ContactSettings(mu=settings.mu, tol=settings.tol, max_iter=settings.max_iter)
+    contact = settings.contact()
     side = 1
     cond = configs[side]
     first = settings.stages()[0]

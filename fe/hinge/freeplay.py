@@ -366,7 +366,7 @@ def run_sliding(
     progress: Callable[[int, int], None] | None,
 ) -> CycleResult:
     """Run the cycle of a hinge with clearance and clamped faces (module docstring)."""
-    contact = ContactSettings(mu=settings.mu, tol=settings.tol, max_iter=settings.max_iter)
+    contact = settings.contact()
     half = 2.0 * clearance_mm  # the clevis' offset of each touching configuration
     f_slide = {d: slide_force(configs[d], contact, d) for d in (1, -1)}
     side, engaged = 1, 0  # coordinates of the tension configuration; the pin centred

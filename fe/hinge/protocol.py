@@ -11,6 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ConvergenceError, check_range
+from fe.contact import ContactSettings
 
 logger = logging.getLogger(__name__)
 
@@ -76,6 +77,10 @@ class CycleSettings:
         check_range("blas_threads", self.blas_threads, 1, 64)
         check_range("contact_window", self.contact_window, 0.0, 10.0)
         check_range("clearance_increments", self.clearance_increments, 2, 10_000)
+
+    def contact(self) -> ContactSettings:
+        """The contact-solver settings of the cycle (μ, tolerance, iteration budget)."""
+        return ContactSettings(mu=self.mu, tol=self.tol, max_iter=self.max_iter)
 
     def stages(self) -> list[tuple[float, float, int]]:
         """Return the stages as (F_from, F_to, increments) [N]."""
