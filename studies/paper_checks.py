@@ -19,7 +19,6 @@
 from __future__ import annotations
 
 import csv
-import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -338,8 +337,3 @@ def markdown(
             )
         lines += ["", pairs["note"]]
     return lines
-
-
-def finite_or_none(v: float | None) -> float | None:
-    """``v`` if it is a finite number, else None."""
-    return v if v is not None and math.isfinite(v) else None
