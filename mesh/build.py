@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass
 
@@ -85,6 +86,39 @@ def _slab_dz(
     return tuple(out)
 
 
+PIN_BAND_MAX_FRACTION = 0.5
+"""Deepest pin band, as a fraction of the pin's radius, tried instead of the O-grid.
+
+The band's inner circle keeps the surface's segment count, so its segments shrink
+with its radius; at half the radius the core inside is as fine as the band, and the
+O-grid of the cad profile (core square at half the radius) is cheaper."""
+
+
+def _pin_band(model: HingeModel, part: Part, s: MeshSettings) -> tuple[CircleSize, float] | None:
+    """Return (the pin's slave circle, band depth [mm]) if ``part`` may get a band, else None.
+
+    A part may if it is swept, has a slave contact cylinder with its material inside
+    (a pin), and the band asked for is shallower than ``PIN_BAND_MAX_FRACTION`` of
+    that radius. ``mesh_part`` then keeps the banded profile only if it has fewer
+    nodes than the O-grid: with few segments round the pin (32 at the default
+    refinement 0) the band, its pillow ring and a core no coarser than the band's
+    inner segments cost more nodes than the O-grid's core square.
+    """
+    if part.sweep is None or not math.isfinite(s.pin_band_mm):
+        return None
+    for face in model.faces.values():
+        surface = face.surface
+        if (
+            face.part == part.name
+            and face.role is FaceRole.CONTACT_SLAVE
+            and isinstance(surface, Cylinder)
+            and surface.material_inside
+            and s.pin_band_mm < PIN_BAND_MAX_FRACTION * surface.radius_mm
+        ):
+            return CircleSize(surface.radius_mm, s.slave_mm), s.pin_band_mm
+    return None
+
+
 def mesh_part(model: HingeModel, part: Part, s: MeshSettings) -> tuple[FloatArray, IntArray]:
     """Mesh one part: swept if it is prismatic, volume-meshed by gmsh otherwise.
 
@@ -93,9 +127,16 @@ def mesh_part(model: HingeModel, part: Part, s: MeshSettings) -> tuple[FloatArra
     """
     if part.sweep is not None:
         circles = _contact_sizes(model, part, s)
-        profile = mesh_profile(
-            part.sweep, s.size_for(part.name), circles, arc_grading=s.arc_grading
-        )
+        size = s.size_for(part.name)
+        profile = mesh_profile(part.sweep, size, circles, arc_grading=s.arc_grading)
+        band = _pin_band(model, part, s)
+        if band is not None:  # the pin's circle first: the band lies under circles[0]
+            first = (band[0], *(c for c in circles if c != band[0]))
+            banded = mesh_profile(
+                part.sweep, size, first, arc_grading=s.arc_grading, band_mm=band[1]
+            )
+            if len(banded.xy) < len(profile.xy):
+                profile = banded
         return extrude(profile, part.sweep, _slab_dz(model, part, part.sweep, s, circles))
     from mesh.volume import mesh_solid_hex  # only volume-meshed parts need it
 

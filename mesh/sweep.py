@@ -21,10 +21,15 @@ import numpy.typing as npt
 
 from cad.errors import GeometryError
 from cad.model import Sweep
+from mesh.band import banded_disk, check_band, pillow_core
 from mesh.gmsh_session import gmsh_session
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+
+BAND_GROWTH = 0.4
+"""Growth of the element size per mm of distance inward from a pin band's inner circle,
+toward the part's global size [mm/mm]: about 1.4× from one element ring to the next."""
 
 MAX_GROWTH = 2.5
 """Largest length ratio of neighbouring segments on a graded arc. Grading 9 over three
@@ -64,9 +69,22 @@ class ProfileMesh:
 
 
 def mesh_profile(
-    sweep: Sweep, size_mm: float, circles: tuple[CircleSize, ...], *, arc_grading: float = 1.0
+    sweep: Sweep,
+    size_mm: float,
+    circles: tuple[CircleSize, ...],
+    *,
+    arc_grading: float = 1.0,
+    band_mm: float | None = None,
 ) -> ProfileMesh:
     """Mesh the profile faces of a swept part into quadrilaterals with gmsh.
+
+    With ``band_mm`` the profile must be the solid disk bounded by ``circles[0]`` (a
+    pin), extruded whole in every slab; its faces are replaced by a structured band
+    ``band_mm`` deep under the circle, four quarter annuli with the circle's segment
+    counts and grading (so the circle's nodes are those of the faces it replaces), and
+    an unstructured core graded from the band's inner segments to ``size_mm``
+    (``BAND_GROWTH``) and pillowed against ears (``mesh.band.pillow_core``). Every
+    quad then has ``quad_face`` 0.
 
     Args:
         sweep: The part's profile faces and slabs.
@@ -74,27 +92,27 @@ def mesh_profile(
         circles: Circles to refine (contact edges), each with its own size.
         arc_grading: Longest over shortest segment along structured arcs, shortest at
             the load line (θ = 0°, 180°); 1 is uniform.
+        band_mm: Depth of the structured band under ``circles[0]`` [mm], in
+            (0, radius); None meshes the profile faces as they are.
 
     Returns:
         The conforming quad mesh of all profile faces.
 
     Raises:
-        GeometryError: If gmsh fails or leaves a non-quad element.
+        GeometryError: If gmsh fails or leaves a non-quad element, or if a band is
+            asked for a profile that is not one disk extruded whole.
     """
+    if band_mm is not None:
+        if not circles:
+            raise GeometryError("a pin band needs the contact circle it lies under")
+        check_band(sweep, circles[0].radius_mm, band_mm)
     with tempfile.TemporaryDirectory() as tmp, gmsh_session("profile") as gmsh:
         try:
-            inputs = []
-            for i, face in enumerate(sweep.profile):
-                path = Path(tmp) / f"face_{i}.brep"
-                bd.export_brep(face, str(path))
-                inputs.append(gmsh.model.occ.importShapes(str(path)))
-            flat = [dt for dts in inputs for dt in dts]
-            if len(flat) > 1:  # make touching faces share their edges (a conforming mesh)
-                _, children = gmsh.model.occ.fragment(flat, [])
+            if band_mm is None:
+                face_of_surface = _import_profile(gmsh, sweep, Path(tmp))
+                core: set[int] = set()
             else:
-                children = [flat]
-            gmsh.model.occ.synchronize()
-            face_of_surface = _map_surfaces(inputs, flat, children)
+                face_of_surface, core = banded_disk(gmsh, circles[0].radius_mm, band_mm)
             # Mesh at twice the size, recombine, then split every element into quads
             # (quad → 4, triangle → 3): all-quad whatever the parity of the boundary.
             _set_sizes(
@@ -102,6 +120,8 @@ def mesh_profile(
                 2.0 * size_mm,
                 tuple(CircleSize(c.radius_mm, 2.0 * c.size_mm) for c in circles),
                 arc_grading,
+                band_mm=band_mm,
+                core=core,
             )
             gmsh.option.setNumber("Mesh.Algorithm", 8)  # frontal-Delaunay for quads
             gmsh.option.setNumber("Mesh.RecombineAll", 1)
@@ -109,11 +129,36 @@ def mesh_profile(
             gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", 1)  # all quadrangles
             gmsh.option.setNumber("Mesh.Smoothing", 5)
             gmsh.model.mesh.generate(2)
-            return _collect_quads(gmsh, face_of_surface)
+            profile = _collect_quads(gmsh, face_of_surface)
         except GeometryError:
             raise
         except Exception as err:
             raise GeometryError(f"gmsh could not mesh the profile: {err}") from err
+    if band_mm is None:
+        return profile
+    inner_mm = circles[0].radius_mm - band_mm
+    xy, quads = pillow_core(profile.xy, profile.quads, inner_mm)
+    return ProfileMesh(xy, quads, np.zeros(len(quads), dtype=np.int64))
+
+
+def _import_profile(gmsh: Any, sweep: Sweep, tmp: Path) -> dict[int, int]:
+    """Load the profile faces into gmsh, fragmented so that touching faces share edges.
+
+    Returns:
+        gmsh surface tag → index of the profile face it came from.
+    """
+    inputs = []
+    for i, face in enumerate(sweep.profile):
+        path = tmp / f"face_{i}.brep"
+        bd.export_brep(face, str(path))
+        inputs.append(gmsh.model.occ.importShapes(str(path)))
+    flat = [dt for dts in inputs for dt in dts]
+    if len(flat) > 1:  # make touching faces share their edges (a conforming mesh)
+        _, children = gmsh.model.occ.fragment(flat, [])
+    else:
+        children = [flat]
+    gmsh.model.occ.synchronize()
+    return _map_surfaces(inputs, flat, children)
 
 
 def _map_surfaces(
@@ -138,7 +183,13 @@ def _map_surfaces(
 
 
 def _set_sizes(
-    gmsh: Any, size_mm: float, circles: tuple[CircleSize, ...], arc_grading: float = 1.0
+    gmsh: Any,
+    size_mm: float,
+    circles: tuple[CircleSize, ...],
+    arc_grading: float = 1.0,
+    *,
+    band_mm: float | None = None,
+    core: set[int] | None = None,
 ) -> None:
     """Make four-sided faces transfinite and grade the other faces toward the circles.
 
@@ -146,7 +197,11 @@ def _set_sizes(
     gets ceil(θ·R_c / s_c) segments (R_c, s_c: the first circle's radius and size), so
     opposite sides of every quarter patch match; a radial line gets segments of 1.5 s_c.
     Arcs and chords are graded geometrically by ``arc_grading`` (longest/shortest),
-    shortest at the end nearest the load line (the x axis).
+    shortest at the end nearest the load line (the x axis); a band's inner arcs too, so
+    that its elements stay on rays (a uniform inner arc shears them more at each level,
+    and inverted one at level 3). With a band under the first circle the ``core``
+    surfaces stay unstructured, the size growing from the inner arcs' mean segment
+    s_c·(R_c − band)/R_c at depth ``band_mm`` to ``size_mm`` by ``BAND_GROWTH`` per mm.
     """
     g = gmsh
     g.option.setNumber("Mesh.MeshSizeFromPoints", 0)
@@ -157,7 +212,7 @@ def _set_sizes(
     r_c, s_c = circles[0].radius_mm, circles[0].size_mm
     for _, surface in g.model.getEntities(2):
         curves = [abs(tag) for _, tag in g.model.getBoundary([(2, surface)], oriented=False)]
-        if len(curves) != 4:
+        if len(curves) != 4 or surface in (core or set()):
             continue
         for tag in curves:
             n = _segments(g, tag, r_c, s_c)
@@ -165,7 +220,7 @@ def _set_sizes(
             g.model.mesh.setTransfiniteCurve(tag, n + 1, "Progression", coef)
         g.model.mesh.setTransfiniteSurface(surface)
     fields = []
-    for c in circles:
+    for k, c in enumerate(circles):
         curves = [
             tag
             for _, tag in g.model.getEntities(1)
@@ -177,10 +232,15 @@ def _set_sizes(
         g.model.mesh.field.setNumber(dist, "Sampling", 200)
         thr = g.model.mesh.field.add("Threshold")
         g.model.mesh.field.setNumber(thr, "InField", dist)
-        g.model.mesh.field.setNumber(thr, "SizeMin", c.size_mm)
+        if k == 0 and band_mm is not None:
+            s_in = c.size_mm * (c.radius_mm - band_mm) / c.radius_mm
+            dist_min, dist_max = band_mm, band_mm + max(size_mm - s_in, 0.0) / BAND_GROWTH
+        else:
+            s_in, dist_min, dist_max = c.size_mm, 0.5 * c.radius_mm, c.radius_mm + 3 * size_mm
+        g.model.mesh.field.setNumber(thr, "SizeMin", s_in)
         g.model.mesh.field.setNumber(thr, "SizeMax", size_mm)
-        g.model.mesh.field.setNumber(thr, "DistMin", 0.5 * c.radius_mm)
-        g.model.mesh.field.setNumber(thr, "DistMax", c.radius_mm + 3 * size_mm)
+        g.model.mesh.field.setNumber(thr, "DistMin", dist_min)
+        g.model.mesh.field.setNumber(thr, "DistMax", dist_max)
         fields.append(thr)
     fmin = g.model.mesh.field.add("Min")
     g.model.mesh.field.setNumbers(fmin, "FieldsList", fields)

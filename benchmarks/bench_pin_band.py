@@ -1,0 +1,99 @@
+"""The general hinge's cycle with and without the pin's band (MeshSettings.pin_band_sizes).
+
+One row per (level, clearance, band) case, each in a fresh process, with the columns of
+bench_cycle.py plus the pin's share of the nodes. ``inf`` asks for the O-grid of every
+pin node at the contact size (the meshes before the band); the default is 3 slave sizes.
+
+Run: .venv/bin/python benchmarks/bench_pin_band.py LEVELS CLEARANCES BANDS
+     e.g. .venv/bin/python benchmarks/bench_pin_band.py 0,1 0,0.1 inf,3
+
+Recorded: bench_cycle_pin_band.txt.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import print_table, run_isolated
+
+COLUMNS = [
+    "level",
+    "clearance",
+    "band",
+    "n_dof",
+    "pin_share",
+    "points",
+    "assembly_s",
+    "factor_s",
+    "compliance_s",
+    "condense_s",
+    "contact_s",
+    "iterations",
+    "wall_s",
+    "peak_MB",
+    "eta",
+    "energy_err",
+]
+
+
+def case(level: int, clearance: float, band: float) -> dict[str, object]:
+    """Run the default 400 N cycle at one refinement, clearance and band depth."""
+    import numpy as np
+
+    from cad.general import GeneralHingeParams
+    from fe.hinge.cycle import CycleSettings
+    from fe.service import DesignPoint, ModelService, ModelSpec
+    from mesh.settings import MeshSettings
+
+    spec = ModelSpec(
+        "general",
+        GeneralHingeParams(),
+        MeshSettings(refinement=level, pin_band_sizes=band),
+        CycleSettings(amplitude_n=400.0, blas_threads=1),
+    )
+    service = ModelService()
+    prepared = service.prepare(spec, clearance)
+    system = prepared.system
+    mesh = prepared.meshed.mesh
+    pin = mesh.part_names.index("pin")
+    pin_nodes = len(np.unique(mesh.hexes[mesh.elem_part == pin]))
+    res = service.run_point(spec, DesignPoint(400.0, clearance))
+    m = res.metrics()
+    t = {**system.timings_s, **res.timings_s}
+    return {
+        "level": level,
+        "clearance": clearance,
+        "band": band,
+        "n_dof": system.n_dof,
+        "pin_share": pin_nodes / len(mesh.nodes),
+        "points": len(res.configs[1].geo.slave),
+        "assembly_s": t["assembly"],
+        "factor_s": t["factorisation"],
+        "compliance_s": t.get("compliance", 0.0),
+        "condense_s": t["condensation"] - t.get("compliance", 0.0),
+        "contact_s": t["contact"],
+        "iterations": sum(i.iterations for i in res.increments),
+        "eta": m["eta"],
+        "energy_err": m["energy_balance_rel_err"],
+    }
+
+
+def main(argv: list[str]) -> None:
+    """Run every combination of the comma-separated levels, clearances and bands."""
+    levels = [int(v) for v in argv[0].split(",")]
+    clearances = [float(v) for v in argv[1].split(",")]
+    bands = [float(v) for v in argv[2].split(",")]
+    rows = [
+        run_isolated(case, level, clearance, band)
+        for clearance in clearances
+        for level in levels
+        for band in bands
+    ]
+    print("general hinge, Fg 400 N, mu 0.2, CycleSettings defaults, 1 BLAS thread")
+    print_table(rows, COLUMNS)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
