@@ -37,6 +37,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from cad.errors import check_range
+from fe.contact.dense import lu_solve
 from fe.contact.gmres import gmres
 from fe.contact.law import ContactStatus
 from fe.contact.newton import (
@@ -71,6 +72,9 @@ class KrylovOptions:
         forcing: Relative GMRES tolerance is ``min(forcing, ρ²)`` (inexact Newton that
             keeps the final equilibrium error, hence the energy balance, at round-off).
         min_size: Smaller systems are always factorised (dense LU is cheap there).
+        single_min: Reduced systems of at least this many unknowns get a float32 LU as
+            their base (half the time of float64; it is a preconditioner, the steps
+            still solve the exact system), with a float64 LU where GMRES fails on it.
     """
 
     max_update: float = 0.15
@@ -79,6 +83,7 @@ class KrylovOptions:
     turn_cos: float = 0.9
     forcing: float = 1e-3
     min_size: int = 0
+    single_min: int = 2000
 
     def __post_init__(self) -> None:
         check_range("krylov.max_update", self.max_update, 0.0, 1.0)
@@ -87,6 +92,7 @@ class KrylovOptions:
         check_range("krylov.turn_cos", self.turn_cos, -1.0, 1.0)
         check_range("krylov.forcing", self.forcing, 0.0, 1.0, lo_open=True, hi_open=True)
         check_range("krylov.min_size", self.min_size, 0, float("inf"))
+        check_range("krylov.single_min", self.single_min, 1, float("inf"))
 
 
 class Base(NamedTuple):
@@ -238,7 +244,7 @@ def _rows(ops: _Operators, q: IntArray) -> FloatArray:
 class _Precond(NamedTuple):
     """Data of ``M⁻¹`` (see the module docstring)."""
 
-    lu: tuple[FloatArray, npt.NDArray[np.int32]]
+    lu: tuple[npt.NDArray[np.floating], npt.NDArray[np.int32]]
     n0: int
     qS_new: IntArray
     qS_old: IntArray
@@ -255,7 +261,7 @@ def _solve_ss(pc: _Precond, Y_S: FloatArray) -> FloatArray:
     """``J₀,SS⁻¹ Y_S`` for Y_S of shape (n_S, p)."""
     Y = np.zeros((pc.n0, Y_S.shape[1]))
     Y[pc.qS_old] = Y_S
-    X: FloatArray = sla.lu_solve(pc.lu, Y, trans=1, check_finite=False)
+    X = lu_solve(pc.lu, Y)
     if pc.Zoo is None:
         return X[pc.qS_old]
     out: FloatArray = X[pc.qS_old] - pc.Z_S @ sla.lu_solve(
@@ -307,7 +313,7 @@ def _precondition(base: Base, lin: Linear, ops: _Operators, opts: KrylovOptions)
         if len(qO):
             E = np.zeros((n0, len(qO)))
             E[qO, np.arange(len(qO))] = 1.0
-            Z = sla.lu_solve(lu, E, trans=1, check_finite=False)
+            Z = lu_solve(lu, E)
             pc = _Precond(lu, n0, qS_new, qS_old, qN, qO, Z[qS_old], _lu_or_none(Z[qO]), *_EMPTY)
         else:
             pc = _Precond(lu, n0, qS_new, qS_old, qN, qO, np.zeros((0, 0)), None, *_EMPTY)
@@ -406,29 +412,70 @@ def krylov_step(
     ops = _operators(prob, lin, ws)
     r_bar = float(np.mean(r))
     if ws.base is not None and not ws.refresh and n >= opts.min_size and n > 0:
-        pc = _precondition(ws.base, lin, ops, opts)
-        bp = None if pc is None else _bordered(pc, lin, cut, r_bar)
-        if bp is not None:
-            # Unknowns (dq, α_new - α): the right-hand side is then of the size of the
-            # Newton residual, so the relative tolerance is a forcing term.
-            rhs = np.concatenate([lin.b - lin.Jalpha @ it.alpha, lin.h / r_bar])
-            rtol = max(min(opts.forcing, it.rho**2), 1e-14)  # last steps near round-off
-            sol = gmres(
-                lambda z: _apply_k(ops, lin, r_bar, z),
-                lambda z: _apply_p(bp, z),
-                rhs,
-                rtol,
-                opts.max_iter,
-            )
-            ws.gmres_iterations += sol.iterations
-            if sol.converged:
-                ws.refresh = sol.iterations > opts.refresh_iter
-                dq, alpha_new = sol.z[:n], it.alpha + sol.z[n:]
-                step = lin.s + (lin.T @ dq).reshape(-1, 3)
-                return Step(step, alpha_new, ws.base.factor, True)
+        step = _gmres_step(it, lin, ops, ws, opts, cut, r_bar, refresh_after=True)
+        if step is not None:
+            return step
+    single = n >= opts.single_min
+    factor = factor_jacobian(
+        form_jacobian(ops.W_b, ops.block, lin), lin.keys, threads, single=single
+    )
+    if factor is None and not single:
+        return None
+    if factor is not None:
+        ws.base, ws.refresh = Base(factor, lin.closed, lin.kind, lin.u), False
+    if single and factor is not None:
+        # A float32 base is a preconditioner only: the step comes from GMRES on the
+        # exact system, where it is exact but for round-off (a few iterations).
+        step = _gmres_step(it, lin, ops, ws, opts, cut, r_bar, refresh_after=False)
+        if step is not None:
+            return step._replace(reused=False)
     factor = factor_jacobian(form_jacobian(ops.W_b, ops.block, lin), lin.keys, threads)
     if factor is None:
         return None
     ws.base, ws.refresh = Base(factor, lin.closed, lin.kind, lin.u), False
     dq, alpha_new = solve_bordered(factor, lin.Jalpha, lin.H, lin.b, lin.h, cut)
     return Step(lin.s + (lin.T @ dq).reshape(-1, 3), alpha_new, factor, False)
+
+
+def _gmres_step(
+    it: Iterate,
+    lin: Linear,
+    ops: _Operators,
+    ws: Workspace,
+    opts: KrylovOptions,
+    cut: float,
+    r_bar: float,
+    *,
+    refresh_after: bool,
+) -> Step | None:
+    """The Newton step by GMRES preconditioned with ``ws.base``; None if that fails.
+
+    ``refresh_after``: ask for a refactorisation at the next step if GMRES needed more
+    than ``opts.refresh_iter`` iterations.
+    """
+    if ws.base is None:
+        return None
+    n = len(lin.keys)
+    pc = _precondition(ws.base, lin, ops, opts)
+    bp = None if pc is None else _bordered(pc, lin, cut, r_bar)
+    if bp is None:
+        return None
+    # Unknowns (dq, α_new - α): the right-hand side is then of the size of the
+    # Newton residual, so the relative tolerance is a forcing term.
+    rhs = np.concatenate([lin.b - lin.Jalpha @ it.alpha, lin.h / r_bar])
+    rtol = max(min(opts.forcing, it.rho**2), 1e-14)  # last steps near round-off
+    sol = gmres(
+        lambda z: _apply_k(ops, lin, r_bar, z),
+        lambda z: _apply_p(bp, z),
+        rhs,
+        rtol,
+        opts.max_iter,
+    )
+    ws.gmres_iterations += sol.iterations
+    if not sol.converged:
+        return None
+    if refresh_after:
+        ws.refresh = sol.iterations > opts.refresh_iter
+    dq, alpha_new = sol.z[:n], it.alpha + sol.z[n:]
+    step = lin.s + (lin.T @ dq).reshape(-1, 3)
+    return Step(step, alpha_new, ws.base.factor, True)

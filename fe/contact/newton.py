@@ -87,6 +87,28 @@ class Iterate(NamedTuple):
     Wp: FloatArray
 
 
+class Solved(NamedTuple):
+    """A converged increment before its works are summed up (see :mod:`fe.contact.solve`).
+
+    Attributes:
+        it: The converged iterate, ``w`` from an exact product ``W p``.
+        iterations: Newton iterations, regularised ones included.
+        history: Scaled residual ``ρ`` at the start and after every iteration.
+        rescues: Rescues taken (or regularised steps rejected).
+        factorizations: LU factorisations of step matrices.
+        linear_iterations: GMRES iterations.
+        regularised_iterations: Iterations of the regularised fallback.
+    """
+
+    it: Iterate
+    iterations: int
+    history: tuple[float, ...]
+    rescues: int
+    factorizations: int
+    linear_iterations: int
+    regularised_iterations: int
+
+
 def evaluate(
     prob: Problem,
     p: FloatArray,

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import numpy.typing as npt
 
@@ -12,7 +10,7 @@ from fe.contact.globalise import RESCUE_FACTORS as RESCUE_FACTORS
 from fe.contact.globalise import newton_loop
 from fe.contact.krylov import workspace_for
 from fe.contact.law import ContactStatus
-from fe.contact.newton import Iterate, Problem, evaluate
+from fe.contact.newton import Iterate, Problem, Solved, evaluate, sparse_product
 from fe.contact.proximal import proximal_loop
 from fe.contact.state import (
     ContactSettings,
@@ -21,6 +19,7 @@ from fe.contact.state import (
     LinearSolver,
     validate_problem,
 )
+from fe.contact.working import select_points, solve_on_points
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -82,7 +81,47 @@ def solve_increment(
         p0, a0 = np.array(state_prev.p), np.array(state_prev.alpha)
     else:
         p0, a0 = np.zeros((m, 3)), np.zeros(k)
-    it = evaluate(prob, p0, a0, r_base)
+    if settings.working_set and prob.symmetric:
+        it = evaluate(prob, p0, a0, r_base, sparse_product(prob.W, p0).reshape(-1, 3))
+        points = select_points(prob, state_prev, it, settings.working_margin)
+        if points is not None:
+            solved = solve_on_points(
+                prob, state_prev, it, r_base, cut, settings, increment, points, newton
+            )
+            return _result(prob, state_prev, solved)
+    else:
+        it = evaluate(prob, p0, a0, r_base)
+    return _result(prob, state_prev, newton(prob, it, r_base, cut, settings, increment))
+
+
+def newton(
+    prob: Problem,
+    it: Iterate,
+    r_base: FloatArray,
+    cut: float,
+    settings: ContactSettings,
+    increment: int,
+    max_iter: int | None = None,
+) -> Solved:
+    """Run the Newton loop (and the regularised fallback) from ``it`` to ``ρ <= tol``.
+
+    Args:
+        prob: The problem.
+        it: Starting iterate, evaluated with ``r_base``.
+        r_base: Augmentation per point, shape (m,), float64 [N/mm].
+        cut: Absolute singular-value cut of the rigid-body Schur complement.
+        settings: Solver options.
+        increment: Index reported in a ConvergenceError.
+        max_iter: Iteration budget (default ``settings.max_iter``).
+
+    Returns:
+        The converged iterate, its ``w`` from an exact product, and the counts.
+
+    Raises:
+        ConvergenceError: If ``ρ > tol`` after the budget; ``partial`` holds the last
+            iterate as a ContactState.
+    """
+    budget = settings.max_iter if max_iter is None else max_iter
     rho0 = it.rho
     krylov = settings.linear_solver is LinearSolver.KRYLOV and prob.symmetric
     ws = workspace_for(prob.W, prob.w_sum) if krylov else None
@@ -94,17 +133,20 @@ def solve_increment(
         cut,
         settings,
         ws=ws,
-        max_iter=settings.max_iter,
+        max_iter=budget,
         tol=settings.tol,
         stop_on_singular=True,
     )
     runs = [run]
     if run.singular:  # no Newton step exists (rank-deficient W): regularised fallback
-        budget = settings.max_iter - run.iterations
         it = evaluate(prob, run.it.p, run.it.alpha, r_base)
-        runs.append(proximal_loop(prob, it, r_base, cut, settings, settings.proximal, budget))
+        runs.append(
+            proximal_loop(
+                prob, it, r_base, cut, settings, settings.proximal, budget - run.iterations
+            )
+        )
     it, n_iter = runs[-1].it, sum(x.iterations for x in runs)
-    history = [rho0, *(rho for x in runs for rho in x.history)]
+    history = (rho0, *(rho for x in runs for rho in x.history))
     if it.rho > settings.tol:
         reason = (
             "; singular step matrix (rank-deficient W), regularised Newton fallback"
@@ -119,26 +161,22 @@ def solve_increment(
             residual=it.rho,
             partial=partial,
         )
-    rescues = sum(x.rescues for x in runs)
-    n_factor = sum(x.factorizations for x in runs)
-    n_gmres = 0 if ws is None else ws.gmres_iterations - gmres_before
     if n_iter:  # W p was updated along the steps: report w with an exact product
         Wp = (prob.W @ it.p.ravel()).reshape(-1, 3)
         it = it._replace(w=Wp + (prob.G @ it.alpha).reshape(-1, 3) + prob.w_free, Wp=Wp)
-    result = _result(prob, state_prev, it, n_iter, history, rescues, n_factor, n_gmres)
-    return dataclasses.replace(result, regularised_iterations=n_iter - run.iterations)
+    return Solved(
+        it,
+        n_iter,
+        history,
+        sum(x.rescues for x in runs),
+        sum(x.factorizations for x in runs),
+        0 if ws is None else ws.gmres_iterations - gmres_before,
+        n_iter - run.iterations,
+    )
 
 
-def _result(
-    prob: Problem,
-    prev: ContactState,
-    it: Iterate,
-    n_iter: int,
-    history: list[float],
-    rescues: int,
-    n_factor: int,
-    n_gmres: int,
-) -> IncrementResult:
+def _result(prob: Problem, prev: ContactState, solved: Solved) -> IncrementResult:
+    it = solved.it
     status = it.law.status
     dw = it.w - prev.w
     p_mid = 0.5 * (prev.p + it.p)
@@ -147,15 +185,16 @@ def _result(
     dissipation = -np.sum(it.p[:, 1:] * dw[:, 1:], axis=1)
     return IncrementResult(
         state=ContactState(it.p, it.w, status, it.alpha),
-        iterations=n_iter,
-        residuals=tuple(history),
+        iterations=solved.iterations,
+        residuals=solved.history,
         n_open=int(np.sum(status == ContactStatus.OPEN)),
         n_stick=int(np.sum(status == ContactStatus.STICK)),
         n_slip=int(np.sum(status == ContactStatus.SLIP)),
         friction_work=friction_work,
         normal_work=normal_work,
         dissipation=dissipation,
-        rescues=rescues,
-        factorizations=n_factor,
-        linear_iterations=n_gmres,
+        rescues=solved.rescues,
+        factorizations=solved.factorizations,
+        linear_iterations=solved.linear_iterations,
+        regularised_iterations=solved.regularised_iterations,
     )

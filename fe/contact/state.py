@@ -104,6 +104,11 @@ class ContactSettings:
             :func:`fe.contact.dense.lu_threads`).
         proximal: Tuning of the fallback for singular step matrices
             (:mod:`fe.contact.proximal`).
+        working_set: Solve on the points that may close and check the others
+            (:mod:`fe.contact.working`; symmetric ``W`` only). Algorithmic only: the
+            solution is checked on the full problem.
+        working_margin: Points whose gap at the start is within this many times the
+            start's largest normal motion join the working set.
     """
 
     mu: float | tuple[float, ...] | FloatArray = 0.0
@@ -119,6 +124,8 @@ class ContactSettings:
     krylov: KrylovOptions = field(default_factory=KrylovOptions)
     lu_threads: int | None = None
     proximal: ProximalOptions = field(default_factory=ProximalOptions)
+    working_set: bool = False
+    working_margin: float = 3.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mu", _checked_mu(self.mu))
@@ -130,6 +137,7 @@ class ContactSettings:
         check_range("armijo", self.armijo, 0.0, 0.5, lo_open=True, hi_open=True)
         check_range("min_step", self.min_step, 0.0, 1.0, lo_open=True, hi_open=True)
         check_range("chord_rate", self.chord_rate, 0.0, 1.0, hi_open=True)
+        check_range("working_margin", self.working_margin, 0.0, float("inf"), hi_open=True)
         check_range("rigid_rcond", self.rigid_rcond, 0.0, 1.0, lo_open=True, hi_open=True)
 
     def mu_per_point(self, m: int) -> FloatArray:

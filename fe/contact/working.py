@@ -1,0 +1,245 @@
+"""Open-point elimination: solve an increment on a working set of points, check the rest.
+
+Internal to :mod:`fe.contact` (notation there). A point with ``p = 0`` and a gap
+``w_n >= 0`` satisfies its Alart–Curnier equation exactly (the trial ``ξ_n = -r w_n <= 0``
+returns ``λ = 0 = p``), whatever ``r``. So an increment can be solved on the points that
+may close — the *working set*: loaded before or at the start, or with a gap at the start
+within ``working_margin`` times the start's largest normal motion — with the other
+forces held at zero, on ``W`` restricted to those points (a quarter of ``W`` when half the
+points are open, which is what every product of the Newton loop then reads).
+
+The sub-solution is then checked on the full problem with one exact product (the rows of
+the working set, ``W`` being symmetric): every excluded point's trial status must be open
+and the full ``ρ`` must be ``<= tol``. Then it *is* a solution of the full problem, to the
+same tolerance. Otherwise the excluded points that closed join the working set, with a
+margin from the motion the sub-solve found, and the sub-problem is solved again from where
+it stopped; after ``ROUNDS`` rounds (or if the set grows past ``MAX_FRACTION`` of the
+points) the full problem is solved from there. The set is kept per ``W`` between
+increments while it still holds the points needed with at most ``SLACK`` spare, so that
+the restricted ``W`` — and the Krylov workspace keyed by it, with its LU — carry over.
+"""
+
+from __future__ import annotations
+
+import threading
+import weakref
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from cad.errors import ConvergenceError
+from fe.contact.law import ContactStatus
+from fe.contact.newton import Iterate, Problem, Solved, evaluate, sparse_product
+from fe.contact.state import ContactSettings, ContactState
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+MIN_POINTS = 32
+"""Problems with fewer points are solved whole (the restriction would not pay)."""
+
+MAX_FRACTION = 0.75
+"""A working set of more than this fraction of the points is not used (solve whole)."""
+
+SLACK = 1.3
+"""A kept working set may hold this many times the points needed (else it is rebuilt)."""
+
+ROUNDS = 3
+"""Working-set solves per increment before the full problem is solved from there."""
+
+Newton = Callable[[Problem, Iterate, FloatArray, float, ContactSettings, int, int], Solved]
+
+
+class _Kept(NamedTuple):
+    ref: weakref.ref[FloatArray]
+    w_sum: float
+    points: IntArray
+    W_sub: FloatArray
+    w_sum_sub: float
+
+
+_KEPT: dict[tuple[int, int], _Kept] = {}
+_LOCK = threading.Lock()
+
+
+def _dofs(points: IntArray) -> IntArray:
+    return (3 * points[:, None] + np.arange(3)).ravel()
+
+
+def select_points(
+    prob: Problem, prev: ContactState, it: Iterate, margin_factor: float
+) -> IntArray | None:
+    """Points that may close in this increment, shape (n_w,), int64 sorted; None: all.
+
+    Args:
+        prob: The full problem.
+        prev: The previous converged state.
+        it: The starting iterate on the full problem (exact ``w``).
+        margin_factor: ``working_margin``.
+
+    Returns:
+        The working set, or None if it would hold most points or none (solve the whole
+        problem).
+    """
+    m = len(it.p)
+    if m < MIN_POINTS:
+        return None
+    motion = float(np.max(np.abs(it.w[:, 0] - prev.w[:, 0])))
+    need = it.w[:, 0] <= margin_factor * motion
+    need |= (it.p[:, 0] > 0.0) | np.any(prev.p != 0.0, axis=1)
+    need |= prev.status != ContactStatus.OPEN
+    points = np.flatnonzero(need).astype(np.int64)
+    if len(points) == 0 or len(points) > MAX_FRACTION * m:
+        return None
+    return points
+
+
+def _restricted(prob: Problem, points: IntArray) -> tuple[IntArray, FloatArray, float]:
+    """``W`` on a working set, kept per ``W`` while the set still fits (see module doc)."""
+    key = (id(prob.W), threading.get_ident())
+    with _LOCK:
+        kept = _KEPT.get(key)
+    if (
+        kept is not None
+        and kept.ref() is prob.W
+        and kept.w_sum == prob.w_sum
+        and len(kept.points) <= max(SLACK * len(points), len(points) + 8)
+        and bool(np.all(np.isin(points, kept.points)))
+    ):
+        return kept.points, kept.W_sub, kept.w_sum_sub
+    dofs = _dofs(points)
+    W_sub = prob.W[np.ix_(dofs, dofs)]
+    w_sum_sub = float(np.sum(W_sub))
+    entry = _Kept(weakref.ref(prob.W, lambda _r: _KEPT.pop(key, None)), prob.w_sum, points,
+                  W_sub, w_sum_sub)  # fmt: skip
+    with _LOCK:
+        _KEPT[key] = entry
+    return points, W_sub, w_sum_sub
+
+
+def solve_on_points(
+    prob: Problem,
+    prev: ContactState,
+    it: Iterate,
+    r_base: FloatArray,
+    cut: float,
+    settings: ContactSettings,
+    increment: int,
+    points: IntArray,
+    newton: Newton,
+) -> Solved:
+    """Solve the increment on a working set, checked and grown until it holds (module doc).
+
+    Args:
+        prob: The full problem (symmetric ``W``).
+        prev: The previous converged state.
+        it: The starting iterate on the full problem.
+        r_base: Augmentation per point, shape (m,), float64 [N/mm].
+        cut: Absolute singular-value cut of the rigid-body Schur complement.
+        settings: Solver options.
+        increment: Index reported in a ConvergenceError.
+        points: The initial working set (:func:`select_points`).
+        newton: The full solver, ``newton(prob, it, r, cut, settings, increment, budget)``.
+
+    Returns:
+        The converged iterate on the full problem (exact ``w``) and the summed counts.
+
+    Raises:
+        ConvergenceError: As ``newton``; ``partial`` is the last iterate on all points.
+    """
+    m = len(it.p)
+    it = _without(prob, it, points, r_base)
+    start = it
+    budget = settings.max_iter
+    done: list[Solved] = []
+    for _round in range(ROUNDS):
+        points, W_sub, w_sum_sub = _restricted(prob, points)
+        sub = _sub_problem(prob, points, W_sub, w_sum_sub)
+        sub_it = evaluate(sub, it.p[points], it.alpha, r_base[points], it.Wp[points])
+        try:
+            solved = newton(sub, sub_it, r_base[points], cut, settings, increment, budget)
+        except ConvergenceError as err:
+            raise _expanded(err, prev, points, m) from err
+        budget -= solved.iterations
+        done.append(solved)
+        p = np.zeros((m, 3))
+        p[points] = solved.it.p
+        Wp = sparse_product(prob.W, p).reshape(-1, 3)
+        it = evaluate(prob, p, solved.it.alpha, r_base, Wp)
+        outside = np.ones(m, dtype=bool)
+        outside[points] = False
+        closing = outside & (it.law.status != ContactStatus.OPEN)
+        if not np.any(closing) and it.rho <= settings.tol:
+            return _summed(done, it)
+        # The motion the sub-solve found sets the margin of the points added.
+        motion = float(np.max(np.abs(it.w[:, 0] - start.w[:, 0])))
+        near = outside & (it.w[:, 0] <= settings.working_margin * motion)
+        points = np.union1d(points, np.flatnonzero(closing | near)).astype(np.int64)
+        if len(points) > MAX_FRACTION * m or budget <= 0:
+            break
+    done.append(newton(prob, it, r_base, cut, settings, increment, max(budget, 1)))
+    return _summed(done, done[-1].it)
+
+
+def _without(prob: Problem, it: Iterate, points: IntArray, r_base: FloatArray) -> Iterate:
+    """The start with zero force outside the working set (extrapolated tension there)."""
+    outside = np.ones(len(it.p), dtype=bool)
+    outside[points] = False
+    dropped = np.flatnonzero(outside & np.any(it.p != 0.0, axis=1))
+    if len(dropped) == 0:
+        return it
+    p = it.p.copy()
+    p[dropped] = 0.0
+    # W symmetric: remove the dropped points' rows from W p
+    Wp = it.Wp - (it.p[dropped].ravel() @ prob.W[_dofs(dropped)]).reshape(-1, 3)
+    return evaluate(prob, p, it.alpha, r_base, Wp)
+
+
+def _sub_problem(prob: Problem, points: IntArray, W_sub: FloatArray, w_sum_sub: float) -> Problem:
+    mu = np.broadcast_to(np.asarray(prob.mu, dtype=np.float64), (len(prob.w_free),))
+    return Problem(
+        W_sub,
+        prob.w_free[points],
+        prob.G[_dofs(points)],
+        prob.e,
+        prob.w_t_prev[points],
+        mu[points],
+        w_sum_sub,
+        True,
+    )
+
+
+def _summed(done: list[Solved], it: Iterate) -> Solved:
+    """The counts of all solves, with the final iterate on the full problem."""
+    history = tuple(rho for s in done for rho in s.history)
+    return Solved(
+        it,
+        sum(s.iterations for s in done),
+        (*history, it.rho),
+        sum(s.rescues for s in done),
+        sum(s.factorizations for s in done),
+        sum(s.linear_iterations for s in done),
+        sum(s.regularised_iterations for s in done),
+    )
+
+
+def _expanded(
+    err: ConvergenceError, prev: ContactState, points: IntArray, m: int
+) -> ConvergenceError:
+    """The sub-solve's error with its partial state on all points (zero force outside)."""
+    part = err.partial
+    if not isinstance(part, ContactState):
+        return err
+    p = np.zeros((m, 3))
+    w = np.array(prev.w)
+    status = np.zeros(m, dtype=np.int8)
+    p[points], w[points], status[points] = part.p, part.w, part.status
+    return ConvergenceError(
+        str(err).split(" (increment")[0],
+        increment=err.increment,
+        iteration=err.iteration,
+        residual=err.residual,
+        partial=ContactState(p, w, status, part.alpha),
+    )

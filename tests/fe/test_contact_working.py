@@ -1,0 +1,127 @@
+"""Open-point elimination and single-precision bases change the path, never the solution."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from fe.contact import ContactSettings, ContactState, KrylovOptions, solve_increment
+from fe.contact import krylov as contact_krylov
+from fe.contact import newton as contact_newton
+from fe.contact import working as contact_working
+from tests.fe.test_contact_krylov import iterate, punch_history, random_W
+
+
+@pytest.mark.parametrize("k", [0, 3], ids=["no-rigid", "rigid"])
+def test_single_precision_base_gives_the_float64_lu_step(k):
+    """A fresh float32 base: the step comes from GMRES on the exact system, to 1e-10."""
+    W = random_W(25, 7)
+    prob, it, r = iterate(W, 9, k=k)
+    opts = KrylovOptions(single_min=1, forcing=1e-12)
+    ws = contact_krylov.Workspace()
+    step = contact_krylov.krylov_step(prob, it, r, 0.0, ws, opts)
+    ref = contact_newton.newton_step(prob, it, r, 0.0)
+    assert step is not None
+    assert ref is not None
+    assert not step.reused
+    assert ws.base is not None
+    assert ws.base.factor.lu[0].dtype == np.float32
+    assert ws.gmres_iterations > 0
+    np.testing.assert_allclose(step.dp, ref.dp, atol=1e-10 * np.max(np.abs(ref.dp)))
+    a_scale = 1.0 + np.max(np.abs(ref.alpha_new), initial=0.0)
+    np.testing.assert_allclose(step.alpha_new, ref.alpha_new, atol=1e-10 * a_scale)
+
+
+def test_single_precision_bases_give_the_same_history():
+    plain = punch_history(ContactSettings(mu=0.3))
+    single = punch_history(ContactSettings(mu=0.3, krylov=KrylovOptions(single_min=1)))
+    for a, b in zip(plain, single, strict=True):
+        np.testing.assert_allclose(b.state.p, a.state.p, atol=1e-9 * np.max(np.abs(a.state.p)))
+        np.testing.assert_array_equal(b.state.status, a.state.status)
+
+
+def pin_in_hole(m=96, seed=5):
+    """A floating body (3 translations) touching a ring of points, most of them open."""
+    rng = np.random.default_rng(seed)
+    theta = np.linspace(0.0, 2.0 * np.pi, m, endpoint=False)
+    W = random_W(m, seed, coupling=0.3)
+    G = np.zeros((3 * m, 3))
+    G[0::3, 0] = -np.cos(theta)  # the body moving +x closes the points near θ = 0
+    G[0::3, 1] = -np.sin(theta)
+    G[1::3, 0] = np.sin(theta)
+    G[1::3, 1] = -np.cos(theta)
+    G[2::3, 2] = 1.0
+    w_free = np.zeros((m, 3))
+    w_free[:, 0] = 0.02 * (1.0 - np.cos(theta)) + 1e-3 * rng.uniform(size=m)
+    return W, G, w_free
+
+
+def cycle(settings, loads):
+    W, G, w_free = pin_in_hole()
+    state = ContactState.initial(len(w_free), 3)
+    out = []
+    for i, (fx, fy) in enumerate(loads):
+        e = np.array([fx, fy, 0.2 * fy])
+        res = solve_increment(W, w_free, state, settings, G=G, e=e, increment=i)
+        out.append(res)
+        state = res.state
+    return out
+
+
+LOADS = [(10.0 * s, 6.0 * np.sin(3.0 * s)) for s in np.linspace(0.1, 1.0, 8)] + [
+    (10.0 * np.cos(a), 10.0 * np.sin(a)) for a in np.linspace(0.0, 1.5, 8)
+]
+
+
+@pytest.mark.parametrize("margin", [0.0, 3.0], ids=["no-margin", "margin-3"])
+def test_working_set_gives_the_full_solution(margin, monkeypatch):
+    """Solved on the working set and checked: same forces, statuses, works as the full solve.
+
+    The load turns, so the contact zone travels round the ring: points outside the working
+    set close, and the check must catch every one of them (with no margin, all of them).
+    """
+    added = []
+    solve = contact_working._restricted
+
+    def spy(prob, points):
+        added.append(len(points))
+        return solve(prob, points)
+
+    monkeypatch.setattr(contact_working, "_restricted", spy)
+    full = cycle(ContactSettings(mu=0.3), LOADS)
+    ws = cycle(ContactSettings(mu=0.3, working_set=True, working_margin=margin), LOADS)
+    assert len(added) > 0  # the working set was used
+    for a, b in zip(full, ws, strict=True):
+        scale = np.max(np.abs(a.state.p))
+        np.testing.assert_allclose(b.state.p, a.state.p, atol=1e-9 * scale)
+        np.testing.assert_allclose(b.state.w, a.state.w, atol=1e-9 * np.max(np.abs(a.state.w)))
+        np.testing.assert_array_equal(b.state.status, a.state.status)
+        np.testing.assert_allclose(b.friction_work, a.friction_work, atol=1e-9 * scale)
+        assert b.residuals[-1] <= ContactSettings().tol
+    assert max(a.n_open for a in full) > 0.5 * len(full[0].state.p)
+
+
+def test_working_set_never_drops_a_point_that_closes(monkeypatch):
+    """A working set that misses every closing point is grown until none is missed."""
+    monkeypatch.setattr(
+        contact_working,
+        "select_points",
+        lambda prob, prev, it, margin: np.flatnonzero(np.any(prev.p != 0.0, axis=1)),
+    )
+    sizes = []
+    restrict = contact_working._restricted
+
+    def spy(prob, points):
+        sizes.append(len(points))
+        return restrict(prob, points)
+
+    monkeypatch.setattr(contact_working, "_restricted", spy)
+    full = cycle(ContactSettings(mu=0.3), LOADS[:6])
+    ws = cycle(ContactSettings(mu=0.3, working_set=True, working_margin=0.0), LOADS[:6])
+    assert len(sizes) > 5  # rounds were added: the first sets missed closing points
+    assert any(b > a for a, b in itertools.pairwise(sizes))
+    for a, b in zip(full, ws, strict=True):
+        np.testing.assert_allclose(b.state.p, a.state.p, atol=1e-9 * np.max(np.abs(a.state.p)))
+        np.testing.assert_array_equal(b.state.status, a.state.status)
