@@ -96,6 +96,49 @@ def parse_dat(path: Path) -> list[DatBlock]:
 
 
 @dataclass(frozen=True)
+class StaSummary:
+    """What a ccx ``.sta`` file says about the Newton iterations of a run.
+
+    Attributes:
+        increments: Converged increments.
+        iterations: Newton iterations, those of failed attempts included.
+        cutbacks: Failed attempts (an increment reattempted at a smaller size).
+        last_time: Total time of the last converged increment (step k ends at k).
+    """
+
+    increments: int
+    iterations: int
+    cutbacks: int
+    last_time: float
+
+
+def parse_sta(path: Path) -> StaSummary:
+    """Summarise a CalculiX ``.sta`` file (one line per attempt; a failed one ends in U).
+
+    Raises:
+        DataError: If the file is missing or an attempt line is malformed.
+    """
+    if not path.is_file():
+        raise DataError(f"{path}: no such .sta file")
+    increments = iterations = cutbacks = 0
+    last = 0.0
+    for lineno, line in enumerate(path.read_text(errors="replace").splitlines(), start=1):
+        cols = line.split()
+        if len(cols) != 7 or not cols[0].isdigit():  # the two header lines
+            continue
+        try:
+            iterations += int(cols[3])
+            failed = cols[2].endswith("U")
+            if not failed:
+                last = float(cols[4])
+        except ValueError as err:
+            raise DataError(f"{path}:{lineno}: not an attempt line: {line.strip()!r}") from err
+        cutbacks += failed
+        increments += not failed
+    return StaSummary(increments, iterations, cutbacks, last)
+
+
+@dataclass(frozen=True)
 class CcxLoop:
     """The load–displacement history of a deck's run, one entry per converged increment.
 

@@ -9,9 +9,12 @@ What goes where (``**`` lines in the deck say the same next to each block):
   counter-clockwise seen from +ζ, top face 5-8 above it), so connectivity is copied as is.
 * Every facet set becomes an NSET (its nodes) and an element-face ``*SURFACE`` of the same
   name (``elem, S1`` … ``S6``, see ``C3D8_FACES``).
-* Each contact pair: a ``*SURFACE INTERACTION`` (penalty normal law and Coulomb friction
-  with a stick slope: the deck's regularisation, our solver has none) and a
-  ``*CONTACT PAIR`` with slave = pin side, master = hole side; each bonded pair a ``*TIE``.
+* Each contact pair: a ``*SURFACE INTERACTION`` and a ``*CONTACT PAIR`` with slave = pin
+  side, master = hole side; each bonded pair a ``*TIE``. The penalty types (node-to-surface,
+  the default, and surface-to-surface) get a penalty normal law and Coulomb friction with
+  a stick slope, a regularisation our solver does not have; ``DeckSettings.exact_mortar()``
+  writes ccx's mortar contact with hard contact and exact stick instead, the counterpart
+  of our Lagrange-multiplier solver (docs/calculix_crosscheck.md).
 * Boundary conditions as in our solver: FIXED faces fully fixed; the LOAD face (the grip)
   held in the two directions across its normal and moved rigidly along it (``*EQUATION``
   ties every node to a reference node that carries the force, so the total force on the
@@ -76,11 +79,34 @@ _PER_LINE = 8
 _NAME_RE = re.compile(r"[^A-Za-z0-9_]")
 
 
+EXACT_STICK_SLOPE_MPA_PER_MM = 1e12
+"""Stick slope written for exact stick (``stick_slope_mpa_per_mm=None``, mortar only).
+
+ccx's mortar contact solves Coulomb friction with Lagrange multipliers by a semismooth
+Newton method in which 1/λ is a tangential compliance; at 10¹² MPa/mm it is 10⁻¹² mm/MPa,
+so a sticking node slips by less than 10⁻¹¹ mm at 10 MPa: stick is exact to round-off.
+(The penalty types read λ as the slope of a tangential spring instead.)
+"""
+
+
 class ContactType(Enum):
-    """CalculiX's two penalty contact discretisations (the deck's ``TYPE=``)."""
+    """CalculiX's contact discretisations (the deck's ``TYPE=``).
+
+    The first two are penalty methods (a normal and a tangential spring per slave node or
+    integration point). ``MORTAR`` is Sitzmann's dual-mortar method: Lagrange multipliers
+    for the normal and the tangential tractions, eliminated per slave node, solved with a
+    semismooth Newton method; with ``penalty_mpa_per_mm=None`` and
+    ``stick_slope_mpa_per_mm=None`` it enforces hard contact and exact stick, as ours does.
+    """
 
     NODE_TO_SURFACE = "NODE TO SURFACE"
     SURFACE_TO_SURFACE = "SURFACE TO SURFACE"
+    MORTAR = "MORTAR"
+
+    @property
+    def is_penalty(self) -> bool:
+        """Whether the contact is a penalty method (needs a normal slope and a stick slope)."""
+        return self is not ContactType.MORTAR
 
 
 @dataclass(frozen=True)
@@ -95,21 +121,29 @@ class DeckSettings:
         increments_per_stage: Largest increment = 1/this of a step (the initial 0 → +Fg
             step uses half as many, as our cycle does).
         contact: Node-to-surface (a spring per pin node, like our node-wise Lagrange
-            multipliers) or surface-to-surface (integration points on the slave faces).
-        penalty_mpa_per_mm: Slope of the linear pressure-overclosure law [MPa/mm].
-        stick_slope_mpa_per_mm: Slope of shear stress versus elastic slip [MPa/mm].
+            multipliers), surface-to-surface (integration points on the slave faces) or
+            mortar (Lagrange multipliers per slave node, weighted over the faces).
+        penalty_mpa_per_mm: Slope of the linear pressure-overclosure law [MPa/mm]; None:
+            hard contact (mortar only: no ``*SURFACE BEHAVIOR`` card).
+        stick_slope_mpa_per_mm: Slope of shear stress versus elastic slip [MPa/mm]; None:
+            exact stick (mortar only, see ``EXACT_STICK_SLOPE_MPA_PER_MM``).
         tension_mpa: Node-to-surface only: CalculiX's tension for open gaps σ∞ [MPa]
             (it smooths the law over ε = σ∞π/K; small, or it pulls on open nodes).
         adjust_mm: Slave nodes closer than this, or penetrating, are moved onto the master
             facets before the first step [mm]. At Δr = 0 every pin node sits on the
             exact cylinder, beyond the hole's chords, so all are moved; with clearance
-            none are.
+            none are. 0: no ``ADJUST`` parameter.
         float_spring_n_per_mm: Total grounded spring per direction on every part held
             only by contact [N/mm] (spread over its nodes).
         grip_spring_n_per_mm: Grounded spring on the grip reference node [N/mm]; None:
             0 at Δr = 0, else 50 (then the force crosses the free play of 4Δr in 20 N).
         load_factors: Grip force at the end of each step as a multiple of Fg, starting
             from 0 (``CYCLE``; ``(1.0,)`` is the first loading alone).
+        field_tolerance: None: ccx's default convergence criteria (largest residual
+            0.5 % of the average force, 2 % after 9 iterations; largest correction 1 %
+            of the increment's). Else all three criteria set to this value, and the
+            looser one never used: the loop width of the hinge is about 1 % of its peak
+            displacement, so the defaults leave errors of the size being compared.
     """
 
     amplitude_n: float = 400.0
@@ -117,13 +151,14 @@ class DeckSettings:
     clearance_mm: float = 0.0
     increments_per_stage: int = 20
     contact: ContactType = ContactType.NODE_TO_SURFACE
-    penalty_mpa_per_mm: float = 1e6
-    stick_slope_mpa_per_mm: float = 1e6
+    penalty_mpa_per_mm: float | None = 1e6
+    stick_slope_mpa_per_mm: float | None = 1e6
     tension_mpa: float = 1e-3
     adjust_mm: float = 1e-4
     float_spring_n_per_mm: float = 1.0
     grip_spring_n_per_mm: float | None = None
     load_factors: tuple[float, ...] = CYCLE
+    field_tolerance: float | None = None
 
     def __post_init__(self) -> None:
         if not self.load_factors:
@@ -134,13 +169,39 @@ class DeckSettings:
         check_range("mu", self.mu, 0.0, 2.0)
         check_range("clearance_mm", self.clearance_mm, 0.0, 10.0)
         check_range("increments_per_stage", self.increments_per_stage, 2, 10_000)
-        check_range("penalty_mpa_per_mm", self.penalty_mpa_per_mm, 0.0, 1e12, lo_open=True)
-        check_range("stick_slope_mpa_per_mm", self.stick_slope_mpa_per_mm, 0.0, 1e12, lo_open=True)
+        for name in ("penalty_mpa_per_mm", "stick_slope_mpa_per_mm"):
+            value = getattr(self, name)
+            if value is not None:
+                check_range(name, value, 0.0, 1e12, lo_open=True)
+            elif self.contact.is_penalty:
+                raise ParameterError(
+                    f"{name} must be a number for {self.contact.value} contact (None, hard"
+                    " contact or exact stick, is mortar only)"
+                )
+        if self.field_tolerance is not None:
+            check_range("field_tolerance", self.field_tolerance, 0.0, 0.1, lo_open=True)
         check_range("tension_mpa", self.tension_mpa, 0.0, 1e3, lo_open=True)
         check_range("adjust_mm", self.adjust_mm, 0.0, 10.0)
         check_range("float_spring_n_per_mm", self.float_spring_n_per_mm, 0.0, 1e9)
         if self.grip_spring_n_per_mm is not None:
             check_range("grip_spring_n_per_mm", self.grip_spring_n_per_mm, 0.0, 1e9)
+
+    @classmethod
+    def exact_mortar(cls, **overrides: object) -> DeckSettings:
+        """Return CalculiX's closest counterpart of our solver, with any field overridden.
+
+        Mortar contact, hard normal contact, exact stick, no ``ADJUST`` (a mesh whose pin
+        and hole nodes sit at the same angles starts without overclosure) and tight
+        convergence criteria (1e-4).
+        """
+        base: dict[str, object] = {
+            "contact": ContactType.MORTAR,
+            "penalty_mpa_per_mm": None,
+            "stick_slope_mpa_per_mm": None,
+            "adjust_mm": 0.0,
+            "field_tolerance": 1e-4,
+        }
+        return cls(**{**base, **overrides})  # type: ignore[arg-type]
 
     @property
     def grip_spring(self) -> float:
@@ -295,6 +356,43 @@ def _materials(mesh: HexMesh) -> list[str]:
     return out
 
 
+def _normal_law(s: DeckSettings) -> list[str]:
+    """The ``*SURFACE BEHAVIOR`` lines (none: the mortar method's hard contact)."""
+    if s.penalty_mpa_per_mm is None:
+        return [
+            "** Normal: hard contact (no *SURFACE BEHAVIOR: the mortar method's Lagrange",
+            "** multipliers enforce zero penetration, as our solver does).",
+        ]
+    law = _num(s.penalty_mpa_per_mm)
+    if s.contact is ContactType.NODE_TO_SURFACE:
+        law += f", {_num(s.tension_mpa)}"
+    return [
+        "** Normal: penalty, pressure = slope x overclosure [MPa/mm]"
+        + (", then the tension for open gaps [MPa]." if "," in law else "."),
+        "*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR",
+        law,
+    ]
+
+
+def _friction(s: DeckSettings) -> list[str]:
+    """The ``*FRICTION`` lines (none without friction)."""
+    if s.mu == 0.0:
+        return []
+    if s.stick_slope_mpa_per_mm is None:
+        return [
+            "** Friction: Coulomb mu; the stick slope is so large that stick is exact (the",
+            "** mortar method takes its inverse as a tangential compliance).",
+            "*FRICTION",
+            f"{_num(s.mu)}, {_num(EXACT_STICK_SLOPE_MPA_PER_MM)}",
+        ]
+    return [
+        "** Friction: Coulomb mu, then the stick slope [MPa/mm] (elastic slip before sliding;",
+        "** our solver sticks exactly, so a stiffer slope is closer to it).",
+        "*FRICTION",
+        f"{_num(s.mu)}, {_num(s.stick_slope_mpa_per_mm)}",
+    ]
+
+
 def _interactions(mesh: HexMesh, s: DeckSettings) -> list[str]:
     out: list[str] = []
     for pair in mesh.pairs:
@@ -308,31 +406,22 @@ def _interactions(mesh: HexMesh, s: DeckSettings) -> list[str]:
             ]
             continue
         name = inp_name("contact_" + pair.name)
-        law = (
-            f"{_num(s.penalty_mpa_per_mm)}, {_num(s.tension_mpa)}"
-            if s.contact is ContactType.NODE_TO_SURFACE
-            else _num(s.penalty_mpa_per_mm)
-        )
         out += [
             "**",
             f"** ---- Contact pair {pair.name}: slave {pair.slave} (pin side), "
             f"master {pair.master} (hole side) ----",
-            "** Normal: penalty, pressure = slope x overclosure [MPa/mm]"
-            + (", then the tension for open gaps [MPa]." if "," in law else "."),
-            "** Friction: Coulomb mu, then the stick slope [MPa/mm] (elastic slip before sliding;",
-            "** our solver sticks exactly, so a stiffer slope is closer to it).",
             f"*SURFACE INTERACTION, NAME={name}",
-            "*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR",
-            law,
+            *_normal_law(s),
+            *_friction(s),
         ]
-        if s.mu > 0.0:
-            out += ["*FRICTION", f"{_num(s.mu)}, {_num(s.stick_slope_mpa_per_mm)}"]
-        out += [
-            f"** ADJUST: slave nodes within {s.adjust_mm:g} mm of the master facets, or"
-            " penetrating them, start on them.",
-            f"*CONTACT PAIR, INTERACTION={name}, TYPE={s.contact.value}, ADJUST={_num(s.adjust_mm)}",
-            f"{slave}, {master}",
-        ]
+        head = f"*CONTACT PAIR, INTERACTION={name}, TYPE={s.contact.value}"
+        if s.adjust_mm > 0.0:
+            out += [
+                f"** ADJUST: slave nodes within {s.adjust_mm:g} mm of the master facets, or"
+                " penetrating them, start on them."
+            ]
+            head += f", ADJUST={_num(s.adjust_mm)}"
+        out += [head, f"{slave}, {master}"]
     return out
 
 
@@ -396,6 +485,29 @@ def _springs(mesh: HexMesh, s: DeckSettings, roles: _Roles, dof: int, first: int
     return out
 
 
+def _controls(s: DeckSettings) -> list[str]:
+    """The ``*CONTROLS`` cards of a step: iteration limits, and tolerances if asked."""
+    out = [
+        "** Stick/slip changes need more Newton iterations than the defaults allow before a",
+        "** cut-back: divergence checks from iteration 8, at most 50 iterations, 10 cut-backs.",
+        "*CONTROLS, PARAMETERS=TIME INCREMENTATION",
+        "8, 10, 9, 50, 10, 4, 0, 10",
+    ]
+    if s.field_tolerance is None:
+        return out
+    tol = _num(s.field_tolerance)
+    out[-1] = "8, 10, 50, 50, 10, 4, 0, 10"
+    return [
+        *out[:2],
+        "** The looser residual criterion is never used (its iteration I_P = 50, the limit).",
+        *out[2:],
+        "** Convergence: largest residual / average force, largest correction / largest",
+        "** increment, and the residual criterion after I_P iterations.",
+        "*CONTROLS, PARAMETERS=FIELD",
+        f"{tol}, {tol}, , , {tol}",
+    ]
+
+
 def _steps(s: DeckSettings, roles: _Roles, sign: float, dof: int) -> list[str]:
     out: list[str] = []
     previous = 0.0
@@ -411,10 +523,7 @@ def _steps(s: DeckSettings, roles: _Roles, sign: float, dof: int) -> list[str]:
             "*STEP, INC=10000",
             "*STATIC",
             f"{_num(dt)}, 1.0, {_num(dt * 1e-5)}, {_num(dt)}",
-            "** Stick/slip changes need more Newton iterations than the defaults allow before a",
-            "** cut-back: divergence checks from iteration 8, at most 50 iterations, 10 cut-backs.",
-            "*CONTROLS, PARAMETERS=TIME INCREMENTATION",
-            "8, 10, 9, 50, 10, 4, 0, 10",
+            *_controls(s),
             "*CLOAD",
             f"{GRIP_REF_SET}, {dof}, {_num(force)}",
             "** Per increment to the .dat file: the grip displacement, and the total reaction of",

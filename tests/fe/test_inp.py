@@ -13,14 +13,23 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cad.errors import MeshQualityError, ParameterError
+from cad.errors import DataError, MeshQualityError, ParameterError
 from cad.materials import Material
 from cad.model import FaceRole, NamedFace, PairKind, SurfacePair
 from cad.surfaces import Cylinder, Plane
-from fe.interop.ccx import find_ccx, loop_figures, loop_from_dat, parse_dat, run_ccx
+from fe.interop.ccx import (
+    StaSummary,
+    find_ccx,
+    loop_figures,
+    loop_from_dat,
+    parse_dat,
+    parse_sta,
+    run_ccx,
+)
 from fe.interop.inp import (
     C3D8_FACES,
     CYCLE,
+    EXACT_STICK_SLOPE_MPA_PER_MM,
     GRIP_REF_SET,
     ContactType,
     DeckSettings,
@@ -370,3 +379,64 @@ def test_dat_reader_pairs_increments(tmp_path):
     assert loop.grip_disp_mm.tolist() == [0.0, 1e-3]
     assert loop.hinge_force_n.tolist() == [0.0, 200.0]
     assert loop.step.tolist() == [1, 1]
+
+
+# -- mortar: hard contact, exact stick, tight tolerances -------------------------------
+
+
+def test_exact_mortar_deck_has_no_penalty(hinge):
+    model, mesh = hinge
+    settings = DeckSettings.exact_mortar(clearance_mm=0.1)
+    cards = parse_cards(deck_text(mesh, model.faces, settings))
+    assert not cards_of(cards, "SURFACE BEHAVIOR")  # ccx's mortar: hard contact
+    pairs = cards_of(cards, "CONTACT PAIR")
+    assert len(pairs) == len(mesh.pairs)
+    assert all(c.params["TYPE"] == "MORTAR" and "ADJUST" not in c.params for c in pairs)
+    frictions = cards_of(cards, "FRICTION")
+    assert [float(c.data[0][1]) for c in frictions] == [EXACT_STICK_SLOPE_MPA_PER_MM] * 3
+    fields = [c for c in cards_of(cards, "CONTROLS") if c.params["PARAMETERS"] == "FIELD"]
+    assert len(fields) == len(CYCLE)
+    assert all(c.data == [["0.0001", "0.0001", "0.0001"]] for c in fields)
+    times = [c for c in cards_of(cards, "CONTROLS") if c.params["PARAMETERS"] != "FIELD"]
+    assert all(c.data[0][2] == c.data[0][3] == "50" for c in times)  # never the looser R_p
+
+
+def test_default_deck_keeps_ccx_tolerances(hinge_deck):
+    controls = cards_of(hinge_deck[1], "CONTROLS")
+    assert {c.params["PARAMETERS"] for c in controls} == {"TIME INCREMENTATION"}
+    assert all("ADJUST" in c.params for c in cards_of(hinge_deck[1], "CONTACT PAIR"))
+
+
+@pytest.mark.parametrize(
+    "field", ["penalty_mpa_per_mm", "stick_slope_mpa_per_mm"], ids=["hard", "exact_stick"]
+)
+@pytest.mark.parametrize(
+    "contact",
+    [ContactType.NODE_TO_SURFACE, ContactType.SURFACE_TO_SURFACE],
+    ids=["node", "surface"],
+)
+def test_penalty_contact_refuses_exact_laws(field, contact):
+    with pytest.raises(ParameterError, match=rf"^{field} must be a number for"):
+        DeckSettings(contact=contact, **{field: None})
+
+
+def test_mortar_with_penalty_and_stick_slope_writes_both(hinge):
+    model, mesh = hinge
+    settings = DeckSettings(contact=ContactType.MORTAR, penalty_mpa_per_mm=1e7)
+    cards = parse_cards(deck_text(mesh, model.faces, settings))
+    assert all(c.data == [["10000000."]] for c in cards_of(cards, "SURFACE BEHAVIOR"))
+    assert all(c.data == [["0.2", "1000000."]] for c in cards_of(cards, "FRICTION"))
+
+
+def test_sta_reader_counts_attempts(tmp_path):
+    sta = tmp_path / "a.sta"
+    sta.write_text(
+        "SUMMARY OF JOB INFORMATION\n"
+        "  STEP      INC     ATT  ITRS     TOT TIME     STEP TIME      INC TIME\n"
+        "     1          1     1U    8  0.000000E+00  0.000000E+00  0.100000E+00\n"
+        "     1          1     2     5  0.250000E-01  0.250000E-01  0.250000E-01\n"
+        "     2          1     1     3  0.105000E+01  0.500000E-01  0.500000E-01\n"
+    )
+    assert parse_sta(sta) == StaSummary(increments=2, iterations=16, cutbacks=1, last_time=1.05)
+    with pytest.raises(DataError, match=r"no such \.sta"):
+        parse_sta(tmp_path / "missing.sta")
