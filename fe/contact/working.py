@@ -30,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ConvergenceError
+from fe.contact.krylov import workspace_for
 from fe.contact.law import ContactStatus
 from fe.contact.newton import Iterate, Problem, Solved, evaluate, sparse_product
 from fe.contact.state import ContactSettings, ContactState
@@ -112,11 +113,43 @@ def _restricted(prob: Problem, points: IntArray) -> tuple[IntArray, FloatArray, 
     dofs = _dofs(points)
     W_sub = prob.W[np.ix_(dofs, dofs)]
     w_sum_sub = float(np.sum(W_sub))
+    if kept is not None and kept.ref() is prob.W:
+        _carry_base(kept.W_sub, kept.w_sum_sub, kept.points, W_sub, w_sum_sub, points)
     entry = _Kept(weakref.ref(prob.W, lambda _r: _KEPT.pop(key, None)), prob.w_sum, points,
                   W_sub, w_sum_sub)  # fmt: skip
     with _LOCK:
         _KEPT[key] = entry
     return points, W_sub, w_sum_sub
+
+
+def _carry_base(
+    W_old: FloatArray,
+    w_sum_old: float,
+    old: IntArray,
+    W_new: FloatArray,
+    w_sum_new: float,
+    new: IntArray,
+) -> None:
+    """Hand the Krylov base LU of the old working set to the new one (renumbered).
+
+    The base belongs to the reduced Jacobian of its closed points; if the new set holds
+    them all, only their numbering changes, and monotonically (both sets sorted), so the
+    factors keep their unknown order and stay valid. Without this every change of the set
+    would cost a factorisation.
+    """
+    base = workspace_for(W_old, w_sum_old).base
+    if base is None:
+        return
+    closed = old[base.closed]
+    local = np.searchsorted(new, closed)
+    if np.any(local >= len(new)) or not np.array_equal(
+        new[np.minimum(local, len(new) - 1)], closed
+    ):
+        return
+    point = np.searchsorted(base.closed, base.factor.keys // 3)
+    keys = 3 * local[point] + base.factor.keys % 3
+    ws = workspace_for(W_new, w_sum_new)
+    ws.base = base._replace(factor=base.factor._replace(keys=keys), closed=local)
 
 
 def solve_on_points(

@@ -125,3 +125,36 @@ def test_working_set_never_drops_a_point_that_closes(monkeypatch):
     for a, b in zip(full, ws, strict=True):
         np.testing.assert_allclose(b.state.p, a.state.p, atol=1e-9 * np.max(np.abs(a.state.p)))
         np.testing.assert_array_equal(b.state.status, a.state.status)
+
+
+def test_a_grown_working_set_keeps_the_base_lu_on_the_same_slots():
+    """The Krylov base carried to a larger set refers to the same global unknowns."""
+    W = random_W(40, 11)
+    prob, it, r = iterate(W, 12)
+    old = np.arange(0, 40, 2, dtype=np.int64)
+    new = np.union1d(old, [1, 7, 33]).astype(np.int64)
+
+    def sub(points):
+        d = contact_working._dofs(points)
+        W_sub = W[np.ix_(d, d)]
+        return W_sub, float(np.sum(W_sub))
+
+    W_old, s_old = sub(old)
+    sub_prob = contact_working._sub_problem(prob, old, W_old, s_old)
+    sub_it = contact_newton.evaluate(sub_prob, it.p[old], it.alpha, r[old])
+    ws_old = contact_krylov.workspace_for(W_old, s_old)
+    assert contact_krylov.krylov_step(sub_prob, sub_it, r[old], 0.0, ws_old, KrylovOptions())
+    base = ws_old.base
+    assert base is not None
+    assert len(base.factor.keys) > 0
+    W_new, s_new = sub(new)
+    contact_working._carry_base(W_old, s_old, old, W_new, s_new, new)
+    carried = contact_krylov.workspace_for(W_new, s_new).base
+    assert carried is not None
+    assert carried.factor.lu is base.factor.lu
+
+    def slots(points, keys):
+        return 3 * points[keys // 3] + keys % 3
+
+    np.testing.assert_array_equal(slots(new, carried.factor.keys), slots(old, base.factor.keys))
+    np.testing.assert_array_equal(new[carried.closed], old[base.closed])
