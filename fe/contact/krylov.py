@@ -246,11 +246,27 @@ def _apply(ops: _Operators, X: FloatArray) -> FloatArray:
 
 
 def _rows(ops: _Operators, q: IntArray) -> FloatArray:
-    """Rows ``q`` of ``J``, shape (len(q), n_q)."""
-    R_q = ops.R_b[q]
-    A = (ops.W_b @ R_q.T.toarray()).T  # W_b symmetric: R_q W_b = (W_b R_qᵀ)ᵀ
+    """Rows ``q`` of ``J``, shape (len(q), n_q).
+
+    ``R_q W_b`` combines the few rows of ``W_b`` each row of ``R_q`` touches (a sparse
+    times dense product reads only those; a dense product with ``R_q`` as a matrix cost
+    ``2 (3 n_b)² len(q)`` flops).
+    """
+    A = np.asarray(ops.R_b[q] @ ops.W_b)  # (len(q), 3 n_b)
     out: FloatArray = (ops.T_b.T @ A.T).T
     out[np.arange(len(q)), q] += ops.d[q]
+    return out
+
+
+def _cols(ops: _Operators, q: IntArray) -> FloatArray:
+    """Columns ``q`` of ``J``, shape (n_q, len(q)), from rows of the symmetric ``W_b``.
+
+    ``W_b T_q = (T_qᵀ W_b)ᵀ``: combinations of the few rows of ``W_b`` each column of
+    ``T_q`` touches, as in :func:`_rows`.
+    """
+    A = np.asarray(sp.csr_array(ops.T_b[:, q].T) @ ops.W_b)  # (len(q), 3 n_b)
+    out: FloatArray = ops.R_b @ np.ascontiguousarray(A.T)
+    out[q, np.arange(len(q))] += ops.d[q]
     return out
 
 
@@ -332,9 +348,7 @@ def _precondition(base: Base, lin: Linear, ops: _Operators, opts: KrylovOptions)
             pc = _Precond(lu, n0, qS_new, qS_old, qN, qO, np.zeros((0, 0)), None, *_EMPTY)
         if len(qN):
             J_N = _rows(ops, qN)  # (|N|, n)
-            E = np.zeros((n, len(qN)))
-            E[qN, np.arange(len(qN))] = 1.0
-            J_colN = _apply(ops, E)  # (n, |N|)
+            J_colN = _cols(ops, qN)  # (n, |N|)
             V = _solve_ss(pc, J_colN[qS_new])
             J_NS = J_N[:, qS_new]
             sigma = _lu_or_none(J_colN[qN] - J_NS @ V)

@@ -63,6 +63,7 @@ def test_preconditioner_inverts_the_updated_matrix_exactly():
     np.testing.assert_allclose(contact_krylov._solve_m(pc, M @ X), X, atol=1e-9)
     # Rows and columns of the changed unknowns are those of the exact matrix.
     np.testing.assert_allclose(contact_krylov._rows(ops, pc.qN), J_b[pc.qN], atol=1e-13)
+    np.testing.assert_allclose(contact_krylov._cols(ops, pc.qN), J_b[:, pc.qN], atol=1e-13)
 
 
 def test_gmres_solves_a_nonsymmetric_system_to_its_tolerance():
