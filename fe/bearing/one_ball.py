@@ -238,6 +238,27 @@ def _rigid_fields(mesh: HexMesh) -> FloatArray:
     return fields
 
 
+def contact_points_of(
+    mesh: HexMesh, grid: BallBlockGrid
+) -> tuple[ContactGeometry, IntArray, HexMesh]:
+    """Contact points of both ball caps' fine windows against the exact tori.
+
+    Returns:
+        (the points, inner ones first; their raceway index (m,), 0 inner 1 outer; the
+        mesh with the slave windows ``ball_inner_window`` and ``ball_outer_window``).
+    """
+    sets = dict(mesh.facet_sets)
+    sets["ball_inner_window"] = _window(mesh, "ball_inner", grid)
+    sets["ball_outer_window"] = _window(mesh, "ball_outer", grid)
+    mesh = dataclasses.replace(mesh, facet_sets=sets)
+    geos = [
+        _geometry(mesh, "ball_inner_window", "inner_race"),
+        _geometry(mesh, "ball_outer_window", "outer_race"),
+    ]
+    race_of = np.repeat(np.arange(2), [len(g.slave) for g in geos]).astype(np.int64)
+    return _concat(geos), race_of, mesh
+
+
 def build_rig(grid: BallBlockGrid, params: BearingHingeParams | None = None) -> OneBallRig:
     """Mesh, assemble, factorise and condense the one-ball model.
 
@@ -248,10 +269,7 @@ def build_rig(grid: BallBlockGrid, params: BearingHingeParams | None = None) -> 
     p = BearingHingeParams() if params is None else params
     t0 = time.perf_counter()
     mesh = ball_block_mesh(model_bodies(p), grid)
-    sets = dict(mesh.facet_sets)
-    sets["ball_inner_window"] = _window(mesh, "ball_inner", grid)
-    sets["ball_outer_window"] = _window(mesh, "ball_outer", grid)
-    mesh = dataclasses.replace(mesh, facet_sets=sets)
+    geo, race_of, mesh = contact_points_of(mesh, grid)
     t_mesh = time.perf_counter() - t0
 
     axis = mesh.set_nodes("ball_axis")
@@ -267,12 +285,6 @@ def build_rig(grid: BallBlockGrid, params: BearingHingeParams | None = None) -> 
         ]
     )
     system = build_two_body(mesh, "ball_inner_window", "inner_race", fixed)
-    geos = [
-        _geometry(mesh, "ball_inner_window", "inner_race"),
-        _geometry(mesh, "ball_outer_window", "outer_race"),
-    ]
-    geo = _concat(geos)
-    race_of = np.repeat(np.arange(2), [len(g.slave) for g in geos]).astype(np.int64)
     t1 = time.perf_counter()
     cond = condense_normal(system, geo)
     G = zero_energy_map(system, cond, _rigid_fields(mesh))

@@ -1,0 +1,476 @@
+"""The bearing hinge's cycle with ``full`` balls: the meshed-ball law in every ball.
+
+The structure, its condensation on the balls' patch coordinates ``v`` and the load
+sequence are those of the ``hertz`` cycle (:mod:`fe.bearing.cycle`); only the ball law
+changes. Each ball is the condensed meshed one-ball rig (:mod:`fe.bearing.ball_rig`)
+with Coulomb friction on its two contacts, solved by displacement control
+(:class:`fe.bearing.meshed_ball.MeshedBallLaw`): path dependent, so every ball keeps its
+own rig contact state, committed only when the whole increment has converged. Each state
+solves, by Newton with the same backtracking line search as the ``hertz`` cycle::
+
+    v + W f(v) − G α = 0,      G_Uᵀ f(v) = e_U
+
+where ``f_j(v_j)`` is ball j's frictional contact step from its committed state and
+``∂f_j/∂v_j`` its exact tangent for the converged active set (balls below the regularised
+Hertz tangent of :mod:`fe.bearing.cycle` get that one, so Newton sees a ball it is about
+to load). The local solves
+warm-start from the last iterate; a ball with a gap everywhere costs no solve.
+
+Preload: solved frictionless (μ = 0 on the ball contacts): the pair is set down while
+its balls can still roll into place, and the patches' friction history starts from the
+preloaded state (the fits of :mod:`fe.bearing.fit_cycle` make the same choice). The
+step therefore dissipates nothing by that choice, not by a result.
+
+Energy: the local works are the trapezoidal ones of :mod:`fe.contact` (twice the half
+rig's), the structure's and the rigs' stored energies are exact, and the loop is
+integrated with the trapezoid (no Hermite tangent: the tangent jumps at reversals), so
+``W_cycle = ΔE + Σ (friction + normal work)`` holds to the solver tolerance.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from cad.errors import ConvergenceError, ParameterError
+from fe.bearing.ball_rig import load_or_build_rig
+from fe.bearing.cycle import (
+    GRIP_X,
+    GRIP_Z,
+    PRELOAD,
+    REG_FRACTION,
+    BallState,
+    BearingCycle,
+    PreloadResult,
+    ball_law,
+    block_diag,
+    preload_step,
+    with_zero_crossing,
+)
+from fe.bearing.meshed_ball import BallStep, MeshedBallLaw, check_converged, rig_maps
+from fe.bearing.system import BearingSystem
+from fe.contact import ContactState
+from fe.contact.law import ContactStatus
+from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
+from fe.hinge.result import CycleResult, Increment
+from mesh.ball_block import BallBlockGrid
+
+logger = logging.getLogger(__name__)
+
+FloatArray = npt.NDArray[np.float64]
+
+FULL_TOL = 1e-8
+"""Relative tolerance of the ball equilibrium with meshed balls (the local contact solves
+converge to 1e-10 of their own scale, so a tighter global tolerance would only chase
+their round-off)."""
+
+MAX_OUTER = 40
+"""Newton iterations on the ball coordinates per state."""
+
+FULL_HALVINGS = 3
+"""Halvings of the force toward zero at a crossing without preload (no point at F = 0:
+there every ball may be unloaded and the state is not unique)."""
+
+
+@dataclass(frozen=True)
+class FullState:
+    """A converged state of the pair with meshed balls.
+
+    Attributes:
+        balls: The balls' summary (load Q = |f|, geometric approach, angle of f, v, α).
+        rigs: Each ball's rig contact state (half model), length n_b.
+        force_n: Ball forces on the inner rings (radial, axial), shape (n_b, 2) [N].
+        friction_work: Friction work of the step from the last committed state [N·mm].
+        normal_work: Open/close work of the step [N·mm].
+        ball_energy: Strain energy of all balls and their raceway blocks [N·mm].
+        n_open: Open rig points, summed over the balls (half model).
+        n_stick: Sticking rig points. n_slip: Slipping rig points.
+        local_iterations: Contact Newton iterations of the accepted local solves.
+    """
+
+    balls: BallState
+    rigs: tuple[ContactState, ...]
+    force_n: FloatArray
+    friction_work: float
+    normal_work: float
+    ball_energy: float
+    n_open: int
+    n_stick: int
+    n_slip: int
+    local_iterations: int
+
+    def summary(self) -> ContactState:
+        """One point per ball, as the ``hertz`` cycle stores it, with the force kept.
+
+        ``p = [Q, f_r, f_z]``, ``w = [Δ, v_r, v_z]``, status closed (STICK) or OPEN.
+        """
+        b = self.balls
+        p = np.column_stack([b.load_n, self.force_n])
+        w = np.column_stack([b.approach_mm, b.v_mm])
+        status = np.where(b.load_n > 0, ContactStatus.STICK, ContactStatus.OPEN)
+        return ContactState(p, w, status.astype(np.int8), b.alpha)
+
+
+def force_angles(f: FloatArray) -> FloatArray:
+    """Contact angle of each ball from its force (radial, axial), shape (n_b,) [deg]."""
+    return np.asarray(np.degrees(np.arctan2(np.abs(f[:, 1]), f[:, 0])))
+
+
+def _state(
+    system: BearingSystem, v: FloatArray, alpha: FloatArray, steps: list[BallStep], it: int
+) -> FullState:
+    """Assemble a ``FullState`` from the balls' steps at ``v`` (n_b, 2)."""
+    f = np.array([s.force_n for s in steps])
+    d = system.balls.d0 + v
+    approach = np.linalg.norm(d, axis=1) - np.linalg.norm(system.balls.d0, axis=1)
+    Q = np.array([s.load_n for s in steps])
+    angle = np.where(Q > 0, force_angles(f), np.degrees(np.arctan2(np.abs(d[:, 1]), d[:, 0])))
+    stat = [np.asarray(s.state.status) for s in steps]
+    return FullState(
+        balls=BallState(Q, approach, angle, v, alpha, it),
+        rigs=tuple(s.state for s in steps),
+        force_n=f,
+        friction_work=float(sum(s.friction_work for s in steps)),
+        normal_work=float(sum(s.normal_work for s in steps)),
+        ball_energy=float(sum(s.energy for s in steps)),
+        n_open=int(sum(np.sum(x == ContactStatus.OPEN) for x in stat)),
+        n_stick=int(sum(np.sum(x == ContactStatus.STICK) for x in stat)),
+        n_slip=int(sum(np.sum(x == ContactStatus.SLIP) for x in stat)),
+        local_iterations=int(sum(s.iterations for s in steps)),
+    )
+
+
+def solve_full_state(
+    system: BearingSystem,
+    law: MeshedBallLaw,
+    committed: FullState,
+    v0: FloatArray,
+    alpha0: FloatArray,
+    unknown: tuple[int, ...],
+    targets: FloatArray,
+    *,
+    max_iter: int = MAX_OUTER,
+    ref_load_n: float = 1.0,
+) -> FullState:
+    """Solve one state with meshed balls from the committed state ``committed``.
+
+    Args:
+        system: The condensed structure.
+        law: The meshed-ball law.
+        committed: The last converged state (each ball's slip reference and works).
+        v0: Starting ball coordinates, shape (n_b, 2) [mm].
+        alpha0: Load parameters; the known ones are held, shape (3,) [mm].
+        unknown: Indices of the load parameters solved for.
+        targets: Their generalised forces, shape (len(unknown),) [N].
+        max_iter: Newton iterations.
+        ref_load_n: A load of the state's size, to scale the tolerance [N].
+
+    Raises:
+        ConvergenceError: If Newton or a local contact solve does not converge
+            (increment −1: set by the caller).
+    """
+    n = system.n_balls
+    W, G = system.W, system.G
+    GU = G[:, list(unknown)]
+    k = len(unknown)
+    d0, k_n = system.balls.d0, system.balls.k_n
+    q_ref = max(ref_load_n, 1.0) / n
+    ref_mm = (q_ref / k_n) ** (2.0 / 3.0)
+    reg = REG_FRACTION * ref_mm
+    c = float(np.mean(np.diag(W))) + ref_mm / q_ref
+    v = np.array(v0, dtype=float).ravel()
+    alpha = np.array(alpha0, dtype=float)
+    prev = committed.rigs
+
+    def evaluate(v: FloatArray, starts: tuple[ContactState, ...]) -> list[BallStep]:
+        out = []
+        for j in range(n):
+            s = law.solve(j, v[2 * j : 2 * j + 2], prev[j], starts[j])
+            check_converged(s, j)
+            out.append(s)
+        return out
+
+    def residual(steps: list[BallStep], v: FloatArray, a: FloatArray) -> tuple[FloatArray, ...]:
+        f = np.concatenate([s.force_n for s in steps])
+        return v + W @ f - G @ a, GU.T @ f - targets
+
+    def merit(r1: FloatArray, r2: FloatArray) -> float:
+        return float(np.sqrt(r1 @ r1 + (c * c) * (r2 @ r2)))
+
+    steps = evaluate(v, prev)
+    r1, r2 = residual(steps, v, alpha)
+    it = 0
+    while True:
+        if np.abs(r1).max() <= FULL_TOL * max(np.abs(v).max(), ref_mm) and np.abs(r2).max(
+            initial=0.0
+        ) <= FULL_TOL * max(ref_load_n, 1.0):
+            break
+        it += 1
+        if it > max_iter:
+            raise ConvergenceError(
+                "bearing ball equilibrium with meshed balls did not converge",
+                increment=-1,
+                iteration=max_iter,
+                residual=merit(r1, r2),
+            )
+        H = np.array([s.tangent for s in steps])
+        # Where a ball's tangent is below the regularised Hertz one (unloaded, or touching
+        # at a point or two with no stiffness yet), the Hertz tangent shows Newton the
+        # ball it is about to load.
+        H_reg = ball_law(d0, v.reshape(n, 2), k_n, reg)[3]
+        idle = np.trace(H, axis1=1, axis2=2) < np.trace(H_reg, axis1=1, axis2=2)
+        H[idle] = H_reg[idle]
+        Hb = block_diag(H)
+        J = np.zeros((2 * n + k, 2 * n + k))
+        J[: 2 * n, : 2 * n] = np.eye(2 * n) + W @ Hb
+        J[: 2 * n, 2 * n :] = -GU
+        J[2 * n :, : 2 * n] = GU.T @ Hb
+        rhs = -np.concatenate([r1, r2])
+        try:
+            step = np.linalg.solve(J, rhs)
+        except np.linalg.LinAlgError:
+            step = np.linalg.lstsq(J, rhs, rcond=None)[0]
+        m0, t = merit(r1, r2), 1.0
+        starts = tuple(s.state for s in steps)
+        for _ in range(30):
+            v_try = v + t * step[: 2 * n]
+            a_try = alpha.copy()
+            a_try[list(unknown)] += t * step[2 * n :]
+            s_try = evaluate(v_try, starts)
+            q1, q2 = residual(s_try, v_try, a_try)
+            if merit(q1, q2) < (1.0 - 1e-4 * t) * m0:
+                break
+            t *= 0.5
+        v, alpha, steps, r1, r2 = v_try, a_try, s_try, q1, q2
+    return _state(system, v.reshape(n, 2), alpha, steps, it)
+
+
+def elastic_energy_full(system: BearingSystem, s: FullState) -> float:
+    """Strain energy of the structure plus the meshed balls' [N·mm]."""
+    f = s.force_n.ravel()
+    return float(0.5 * f @ system.W @ f + s.ball_energy)
+
+
+def full_preload(
+    system: BearingSystem,
+    law: MeshedBallLaw,
+    preload_n: float,
+    settings: CycleSettings,
+    *,
+    with_friction: bool = False,
+) -> tuple[PreloadResult, FullState]:
+    """Set the pair down to the plate force F_p with meshed balls (step 1).
+
+    Frictionless unless ``with_friction`` (module docstring); starts from the ``hertz``
+    preload state.
+
+    Raises:
+        ParameterError: If ``preload_n`` is outside [0, 500] N.
+        ConvergenceError: With increment 0 (the preload step).
+    """
+    n = system.n_balls
+    hertz = preload_step(system, preload_n, settings)  # validates preload_n
+    start = law.initial_state()
+    zero = FullState(hertz.balls, (start,) * n, np.zeros((n, 2)), 0.0, 0.0, 0.0, 0, 0, 0, 0)
+    if preload_n == 0.0:
+        return PreloadResult(0.0, 0.0, 0.0, hertz.balls, 0.0), zero
+    pre_law = law if with_friction else law.with_mu(0.0)
+    try:
+        st = solve_full_state(
+            system,
+            pre_law,
+            zero,
+            hertz.balls.v_mm,
+            hertz.balls.alpha,
+            (GRIP_X, GRIP_Z, PRELOAD),
+            np.array([0.0, 0.0, preload_n]),
+            ref_load_n=preload_n,
+        )
+    except ConvergenceError as err:
+        raise ConvergenceError(
+            f"the preload step with meshed balls (F_p = {preload_n:g} N) did not converge",
+            increment=0,
+            iteration=err.iteration,
+            residual=err.residual,
+        ) from err
+    law.n_solves += pre_law.n_solves if pre_law is not law else 0
+    pre = PreloadResult(
+        preload_n,
+        float(st.balls.alpha[PRELOAD]),
+        float(st.balls.alpha[GRIP_Z]),
+        st.balls,
+        elastic_energy_full(system, st),
+        st.friction_work,
+    )
+    return pre, st
+
+
+@dataclass(frozen=True)
+class FullCycle:
+    """A cycle with meshed balls: the common result and what only this model has.
+
+    Attributes:
+        cycle: The result and the preload step, as the ``hertz`` cycle returns them.
+        final: The last converged state (every ball's rig state).
+        local_solves: Local contact solves done. skipped: Local steps skipped (unloaded).
+        outer_iterations: Newton iterations on v per increment.
+        rig_dof: DOFs of the rig's mesh. rig_points: Its contact points (half model).
+        rig_timings_s: The rig's build times (as built, also when read from the cache).
+    """
+
+    cycle: BearingCycle
+    final: FullState
+    local_solves: int
+    skipped: int
+    outer_iterations: tuple[int, ...]
+    rig_dof: int
+    rig_points: int
+    rig_timings_s: dict[str, float]
+
+
+def meshed_ball_law(
+    system: BearingSystem, mu: float, grid: BallBlockGrid | None = None
+) -> MeshedBallLaw:
+    """The meshed-ball law of the system's bearing (the rig from the cache or built)."""
+    rig = load_or_build_rig(grid, system.params)
+    return MeshedBallLaw(rig, rig_maps(system.params, system.balls), mu)
+
+
+def run_full_cycle(
+    system: BearingSystem,
+    settings: CycleSettings,
+    preload_n: float,
+    *,
+    grid: BallBlockGrid | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> FullCycle:
+    """Preload, then cycle the clevis force 0 → +Fg → −Fg → +Fg, with meshed balls.
+
+    Args:
+        system: The condensed structure (``interfaces = "bonded"``).
+        settings: The protocol (``settings.mu`` acts on the ball contacts).
+        preload_n: Plate force F_p [N].
+        grid: The rig's mesh grid (``fe.bearing.ball_rig.DEFAULT_RIG_LEVEL`` when None).
+        progress: Called with (increments done, total).
+
+    Raises:
+        ParameterError: If ``preload_n`` is outside [0, 500] N.
+        ConvergenceError: With the increment, iteration and residual; ``partial`` holds
+            the increments that converged.
+    """
+    if not 0.0 <= preload_n <= 500.0:
+        raise ParameterError(f"preload_n must be in [0, 500] N, got {preload_n!r}")
+    t0 = time.perf_counter()
+    law = meshed_ball_law(system, settings.mu, grid)
+    t_rig = time.perf_counter() - t0
+    pre, state = full_preload(system, law, preload_n, settings)
+    pre_summary = state.summary()
+    t_pre = time.perf_counter() - t0 - t_rig
+    incs: list[Increment] = []
+    states: list[ContactState] = []
+    outer: list[int] = []
+    total = sum(n for _, _, n in settings.stages())
+
+    def partial() -> CycleResult:
+        return _result(settings, incs, states, pre_summary, {"rig": t_rig, "preload": t_pre})
+
+    t1 = time.perf_counter()
+    f_prev = 0.0
+    for stage, (f_from, f_to, n) in enumerate(settings.stages()):
+        targets = with_zero_crossing(
+            stage_targets(f_from, f_to, n, settings.grading), f_from, preload_n,
+            at_zero=preload_n > 0.0, halvings=FULL_HALVINGS,
+        )  # fmt: skip
+        for target in targets:
+            state = _advance(system, law, state, f_prev, float(target), settings, preload_n,
+                             len(incs), partial)  # fmt: skip
+            f_prev = float(target)
+            outer.append(state.balls.iterations)
+            incs.append(
+                Increment(
+                    stage=stage,
+                    force_n=f_prev,
+                    disp_mm=float(state.balls.alpha[GRIP_X]),
+                    side=1,
+                    iterations=state.balls.iterations,
+                    n_open=state.n_open,
+                    n_stick=state.n_stick,
+                    n_slip=state.n_slip,
+                    friction_work=state.friction_work,
+                    normal_work=state.normal_work,
+                    elastic_energy=elastic_energy_full(system, state),
+                )
+            )
+            states.append(state.summary())
+            if progress is not None:
+                progress(len(incs), total)
+    timings = {"rig": t_rig, "preload": t_pre, "cycle": time.perf_counter() - t1}
+    bc = BearingCycle(_result(settings, incs, states, pre_summary, timings), pre)
+    return FullCycle(bc, state, law.n_solves, law.n_skipped, tuple(outer),
+                     law.rig.n_dof, law.rig.n_points, law.rig.timings_s)  # fmt: skip
+
+
+def _advance(
+    system: BearingSystem,
+    law: MeshedBallLaw,
+    state: FullState,
+    f_from: float,
+    f_to: float,
+    settings: CycleSettings,
+    preload_n: float,
+    increment: int,
+    partial: Callable[[], CycleResult],
+) -> FullState:
+    """Reach the force ``f_to`` from ``state``, halving the step on failure.
+
+    Sub-steps commit their rig states (the friction path is followed in smaller steps);
+    the works are summed over them.
+    """
+    ref = max(abs(f_to), abs(f_from), preload_n, settings.amplitude_n * 1e-3)
+
+    def attempt(steps: int) -> FullState:
+        s = state
+        fric = normal = 0.0
+        iters = 0
+        for j in range(1, steps + 1):
+            f = f_from + (f_to - f_from) * j / steps
+            s = solve_full_state(system, law, s, s.balls.v_mm, s.balls.alpha, (GRIP_X,),
+                                 np.array([f]), ref_load_n=ref)  # fmt: skip
+            fric += s.friction_work
+            normal += s.normal_work
+            iters += s.balls.iterations
+        if steps == 1:
+            return s
+        b = s.balls
+        balls = BallState(b.load_n, b.approach_mm, b.angle_deg, b.v_mm, b.alpha, iters)
+        return FullState(balls, s.rigs, s.force_n, fric, normal, s.ball_energy, s.n_open,
+                         s.n_stick, s.n_slip, s.local_iterations)  # fmt: skip
+
+    what = f"the cycle with meshed balls at F = {f_to:g} N"
+    return with_cutbacks(
+        attempt, settings.max_cutbacks, increment=increment, what=what, partial=partial
+    )
+
+
+def _result(
+    settings: CycleSettings,
+    incs: list[Increment],
+    states: list[ContactState],
+    preload: ContactState,
+    timings: dict[str, float],
+) -> CycleResult:
+    return CycleResult(
+        settings=settings,
+        clearance_mm=0.0,
+        increments=tuple(incs),
+        free_play_mm=0.0,
+        states=tuple(states),
+        configs={},
+        timings_s=timings,
+        preload_state=preload,
+    )
