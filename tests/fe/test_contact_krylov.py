@@ -153,12 +153,16 @@ def test_default_is_the_krylov_path():
 
 
 @pytest.mark.parametrize("block_kind", ["all", "closed", "superset"])
-def test_form_jacobian_by_row_gathers_equals_r_w_t(block_kind, monkeypatch):
+@pytest.mark.parametrize("symmetric", [True, False], ids=["symmetric", "general"])
+def test_form_jacobian_by_row_gathers_equals_r_w_t(block_kind, symmetric, monkeypatch):
     """The chunked row-gather J equals R W T + diag(d) for any block holding the closed set."""
     monkeypatch.setattr(contact_newton, "_CHUNK", 7)  # several chunks, a ragged last one
     W = random_W(25, 5)
     prob, it, r = iterate(W, 6)
-    lin = contact_newton.linearise(prob, it, r)
+    forced = np.zeros(len(prob.w_free), dtype=bool)
+    forced[::3] = True  # open points closed frictionless, as in a predictor step
+    lin = contact_newton.linearise(prob, it, r, forced)
+    assert np.any(lin.kind == 2)
     assert np.any(lin.kind == 1)
     assert np.any(lin.kind == 0)
     J_ref = lin.R.toarray() @ W @ lin.T.toarray() + np.diag(lin.d)
@@ -169,7 +173,7 @@ def test_form_jacobian_by_row_gathers_equals_r_w_t(block_kind, monkeypatch):
         "superset": np.union1d(lin.closed, np.arange(0, m, 4)),
     }[block_kind]
     dofs = (3 * block[:, None] + np.arange(3)).ravel()
-    J = contact_newton.form_jacobian(W[np.ix_(dofs, dofs)], block, lin)
+    J = contact_newton.form_jacobian(W[np.ix_(dofs, dofs)], block, lin, symmetric=symmetric)
     np.testing.assert_allclose(J, J_ref, rtol=0, atol=1e-13 * np.abs(J_ref).max())
     assert J.flags.c_contiguous
 
