@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from cad.bearing_geometry import BallModel
 from cad.errors import ConvergenceError, ParameterError
 from fe.bearing.system import PARAMS, BearingSystem
 from fe.contact import ContactState
@@ -92,9 +93,16 @@ def contact_angles(d0: FloatArray, v: FloatArray) -> FloatArray:
 
 
 def ball_state_of(system: BearingSystem, state: ContactState) -> BallState:
-    """Rebuild a ``BallState`` from its stored ``ContactState``."""
+    """Rebuild a ``BallState`` from its stored ``ContactState``.
+
+    A ``full``-ball state also stores each ball's force (``p[:, 1:]``, radial and axial;
+    ``fe.bearing.full_cycle``): the contact angle of a loaded ball is then that force's.
+    """
     v = np.asarray(state.w[:, 1:])
     angle = contact_angles(system.balls.d0, v)
+    f = np.asarray(state.p[:, 1:])
+    loaded = np.linalg.norm(f, axis=1) > 0.0
+    angle[loaded] = np.degrees(np.arctan2(np.abs(f[loaded, 1]), f[loaded, 0]))
     return BallState(
         np.asarray(state.p[:, 0]), np.asarray(state.w[:, 0]), angle, v, np.asarray(state.alpha), 0
     )
@@ -330,10 +338,17 @@ def run_bearing_cycle(
 ) -> BearingCycle:
     """Preload, then cycle the clevis force 0 → +Fg → −Fg → +Fg.
 
+    With ``system.params.ball_model = "full"`` the balls are the meshed-ball law
+    (:func:`fe.bearing.full_cycle.run_full_cycle`, its rig at the default level).
+
     Raises:
         ConvergenceError: With the increment, iteration and residual; ``partial`` holds the
             increments that converged (cut back ``settings.max_cutbacks`` times first).
     """
+    if system.params.ball_model is BallModel.FULL:
+        from fe.bearing.full_cycle import run_full_cycle
+
+        return run_full_cycle(system, settings, preload_n, progress=progress).cycle
     t0 = time.perf_counter()
     pre = preload_step(system, preload_n, settings)
     t_pre = time.perf_counter() - t0

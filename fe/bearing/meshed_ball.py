@@ -77,6 +77,10 @@ default 1 took up to 130 with rescues (measured on ``MESH_LEVELS[0]``). Algorith
 RETRY_R_SCALES = (0.03, 0.01, 0.3)
 """Augmentations tried, from the committed state, when a local solve fails."""
 
+GAP_ROUNDOFF_MM = 1e-12
+"""Gaps above −this count as open for skipping an unloaded ball: the nodes at the nominal
+contact points have g0 = 0 up to round-off (−1.3e-15 mm measured)."""
+
 LOCAL_TOL = 1e-10
 """Tolerance of the local solves (the scaled residual of :mod:`fe.contact`)."""
 
@@ -206,15 +210,15 @@ class MeshedBallLaw:
         w_free = rig.w0 + (rig.G_grip @ u).reshape(-1, 3)
         if not np.any(prev.p[:, 0] > 0.0):
             w_open = w_free + (rig.G_ball @ prev.alpha).reshape(-1, 3)
-            if np.all(w_open[:, 0] > 0.0):
+            if np.all(w_open[:, 0] >= -GAP_ROUNDOFF_MM):
                 self.n_skipped += 1
                 return self._unloaded(prev, w_open)
-        res = self._contact(w_free, prev, prev if start is None else start)
+        res, mu = self._contact(w_free, prev, prev if start is None else start)
         self.n_solves += 1
         st = res.state
         f_loc = 2.0 * (rig.G_grip.T @ st.p.ravel())
         f = R.T @ f_loc
-        K = self._tangent(st, prev) if tangent else np.zeros((2, 2))
+        K = self._tangent(st, prev, mu) if tangent else np.zeros((2, 2))
         p = st.p.ravel()
         return BallStep(
             force_n=f,
@@ -232,8 +236,8 @@ class MeshedBallLaw:
 
     def _contact(
         self, w_free: FloatArray, prev: ContactState, start: ContactState
-    ) -> IncrementResult:
-        """The rig's contact step, with the fallbacks of the module docstring.
+    ) -> tuple[IncrementResult, float]:
+        """The rig's contact step, with the fallbacks of the module docstring, and its μ.
 
         Raises:
             ConvergenceError: If even the frictionless solve does not converge.
@@ -248,15 +252,15 @@ class MeshedBallLaw:
 
         frictionless = dataclasses.replace(self._settings, mu=0.0)
         if self.mu == 0.0 or not np.any(prev.p[:, 0] > 0.0):
-            return run(frictionless, start)  # a ball that was unloaded re-seats
+            return run(frictionless, start), 0.0  # a ball that was unloaded re-seats
         for r_scale, st in ((LOCAL_R_SCALE, start), *((r, prev) for r in RETRY_R_SCALES)):
             try:
-                return run(dataclasses.replace(self._settings, r_scale=r_scale), st)
+                return run(dataclasses.replace(self._settings, r_scale=r_scale), st), self.mu
             except ConvergenceError:
                 continue
         self.n_reseated += 1
         logger.info("a meshed ball re-seats frictionlessly (its frictional step failed)")
-        return run(frictionless, prev)
+        return run(frictionless, prev), 0.0
 
     def _unloaded(self, prev: ContactState, w: FloatArray) -> BallStep:
         m = self.rig.n_points
@@ -265,15 +269,15 @@ class MeshedBallLaw:
         zero2 = np.zeros(2)
         return BallStep(zero2, 0.0, np.zeros((2, 2)), st, 0.0, 0.0, 0.0, 0.0, 0, 0, 0)
 
-    def _tangent(self, st: ContactState, prev: ContactState) -> FloatArray:
-        """``∂f_loc/∂u`` of the converged state's active set, shape (2, 2) [N/mm]."""
+    def _tangent(self, st: ContactState, prev: ContactState, mu: float) -> FloatArray:
+        """``∂f_loc/∂u`` of the converged state's active set at friction ``mu``, (2, 2) [N/mm]."""
         rig = self.rig
         c = np.flatnonzero(st.status != ContactStatus.OPEN)
         if len(c) == 0:
             return np.zeros((2, 2))
         g = np.array(st.w)
         g[:, 1:] -= prev.w[:, 1:]
-        D = coulomb_step(g[c], np.asarray(st.p)[c], self.mu, self._r[c]).tangent  # (n_c, 3, 3)
+        D = coulomb_step(g[c], np.asarray(st.p)[c], mu, self._r[c]).tangent  # (n_c, 3, 3)
         rows = (3 * c[:, None] + np.arange(3)[None, :]).ravel()
         n = len(rows)
         # Without a sticking point nothing holds the ball's rotation (its column is

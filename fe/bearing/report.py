@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from cad.bearing_geometry import BallModel
 from cad.errors import ParameterError
 from fe.bearing.cycle import ball_law, ball_state_of, contact_angles
 from fe.bearing.fits import FitSystem
@@ -82,9 +83,14 @@ def increment_fields(system: BearingSystem, result: CycleResult, chosen: list[in
     """Displacement fields of chosen increments, shape (k, n_nodes, 3) [mm]."""
     f = np.zeros((2 * system.n_balls, len(chosen)))
     alpha = np.zeros((3, len(chosen)))
+    full = system.params.ball_model is BallModel.FULL
     for c, k in enumerate(chosen):
         st = result.states[k]
-        f[:, c] = ball_law(system.balls.d0, np.asarray(st.w[:, 1:]), system.balls.k_n)[0].ravel()
+        if full:  # the meshed balls' forces are stored with the state (fe.bearing.full_cycle)
+            f[:, c] = np.asarray(st.p[:, 1:]).ravel()
+        else:
+            v = np.asarray(st.w[:, 1:])
+            f[:, c] = ball_law(system.balls.d0, v, system.balls.k_n)[0].ravel()
         alpha[:, c] = st.alpha
     u = system.displacement(f, alpha)
     return np.moveaxis(u.reshape(system.mesh.n_nodes, 3, -1), 2, 0)

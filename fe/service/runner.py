@@ -113,9 +113,10 @@ def check_spec(spec: ModelSpec) -> None:
 
     Raises:
         ParameterError: For a bearing-hinge model choice whose cycle is not implemented
-            (``ball_model = "full"``), an effect that does not act on the model's hinge kind
-            (``fe.effects.Effect.applies_to``), or ``interface_friction`` on fits that are
-            contacts already.
+            (``ball_model = "full"`` with frictional fits: ``interfaces = "contact"`` or
+            the ``interface_friction`` effect), an effect that does not act on the model's
+            hinge kind (``fe.effects.Effect.applies_to``), or ``interface_friction`` on
+            fits that are contacts already.
     """
     from cad.bearing import BallModel, BearingHingeParams, Interfaces
     from fe.effects import REGISTRY
@@ -135,11 +136,15 @@ def check_spec(spec: ModelSpec) -> None:
         )
     if spec.kind != HingeKind.BEARING or not isinstance(spec.hinge, BearingHingeParams):
         return
-    if spec.hinge.ball_model is not BallModel.HERTZ:
+    if spec.hinge.ball_model is BallModel.FULL and spec.hinge.interfaces is Interfaces.CONTACT:
         raise ParameterError(
-            f"ball_model must be 'hertz' for the bearing cycle (meshed balls are not in the "
-            f"cycle yet: hingelab mesh --hinge bearing builds them), got "
-            f"{spec.hinge.ball_model.value!r}"
+            "ball_model = 'full' runs with interfaces = 'bonded' only (the frictional fits' "
+            "cycle takes hertz balls), got ball_model = 'full' with interfaces = 'contact'"
+        )
+    if spec.hinge.ball_model is BallModel.FULL and INTERFACE_FRICTION in spec.effects:
+        raise ParameterError(
+            f"ball_model = 'full' runs with bonded interfaces only, got ball_model = 'full' "
+            f"with effects.{INTERFACE_FRICTION} (frictional fits take hertz balls)"
         )
     if INTERFACE_FRICTION in spec.effects and spec.hinge.interfaces is Interfaces.CONTACT:
         raise ParameterError(

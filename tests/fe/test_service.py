@@ -33,7 +33,10 @@ def test_result_key_changes_with_every_input_and_only_then():
         result_key(_spec(mu=0.1), p),
         result_key(_spec(increments_per_stage=8), p),
         result_key(dataclasses.replace(spec, mesh=MeshSettings.coarse(refinement=1)), p),
-        result_key(dataclasses.replace(spec, effects={"frame_compliance": {"compliance_mm_per_n": 1e-5}}), p),
+        result_key(
+            dataclasses.replace(spec, effects={"frame_compliance": {"compliance_mm_per_n": 1e-5}}),
+            p,
+        ),
         result_key(spec, DesignPoint(301.0, 0.0)),
         result_key(spec, DesignPoint(300.0, 0.1)),
     ]
@@ -122,7 +125,7 @@ def test_bearing_preloads_share_one_geometry_and_round_trip_the_store(tmp_path):
 
 
 def test_bearing_point_and_spec_mistakes_are_named():
-    from cad.bearing import BallModel, BearingHingeParams
+    from cad.bearing import BallModel, BearingHingeParams, Interfaces
 
     spec = _bearing_spec()
     with pytest.raises(ParameterError, match="clearance_mm must be 0 for the bearing hinge"):
@@ -131,8 +134,10 @@ def test_bearing_point_and_spec_mistakes_are_named():
         result_key(_spec(), DesignPoint(200.0, preload_n=50.0))
     with pytest.raises(ParameterError, match="preload_n must be in"):
         DesignPoint(200.0, preload_n=-5.0)
-    full = dataclasses.replace(spec, hinge=BearingHingeParams(ball_model=BallModel.FULL))
-    with pytest.raises(ParameterError, match="ball_model must be 'hertz'"):
+    full = dataclasses.replace(
+        spec, hinge=BearingHingeParams(ball_model=BallModel.FULL, interfaces=Interfaces.CONTACT)
+    )
+    with pytest.raises(ParameterError, match="runs with interfaces = 'bonded' only"):
         ModelService().run(full, [DesignPoint(200.0)])
 
 

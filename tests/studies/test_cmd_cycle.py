@@ -80,7 +80,10 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
         (["--preload", "50"], "--preload applies to the bearing hinge only"),
         (["--hinge", "bearing", "--clearance", "0.1"], "--clearance: the bearing hinge has no"),
         (["--hinge", "bearing", "--preload", "600"], "--preload: preload_n must be in [0, 500]"),
-        (["--hinge", "bearing", "--ball-model", "full"], "ball_model must be 'hertz'"),
+        (
+            ["--hinge", "bearing", "--ball-model", "full", "--interfaces", "contact"],
+            "ball_model = 'full' runs with interfaces = 'bonded' only",
+        ),
         (["--ball-model", "hertz"], "--ball-model applies to the bearing hinge only"),
     ],
     ids=[
@@ -89,7 +92,7 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
         "preload-on-general",
         "clearance-on-bearing",
         "preload-too-large",
-        "full-balls-not-yet",
+        "full-balls-with-fits",
         "ball-model-on-general",
     ],
 )
@@ -135,6 +138,34 @@ def test_bearing_cycle_with_frictional_fits_dissipates(tmp_path, capsys):
     assert out["eta"] > 1e-3  # the bonded hinge: |η| < 3e-5
     assert out["energy_balance_rel_err"] < 0.05
     assert (tmp_path / "loop.csv").is_file()
+
+
+@pytest.mark.slow
+def test_bearing_cycle_with_full_balls_writes_the_same_result(tmp_path, capsys, monkeypatch):
+    """--ball-model full through the same command: the same JSON keys and files as hertz.
+
+    The rig at MESH_LEVELS[0] (built in ~4 s, cached under tmp_path) keeps this a minute.
+    """
+    from fe.bearing import ball_rig
+
+    monkeypatch.setattr(ball_rig, "DEFAULT_RIG_LEVEL", 0)
+    monkeypatch.setenv("HINGELAB_CACHE_DIR", str(tmp_path / "cache"))
+    argv = ["cycle", "--hinge", "bearing", "--ball-model", "full", "--preload", "100"]
+    argv += ["--size", "4", "--contact-size", "0.8", "--increments", "10", "--frames", "20"]
+    assert main([*argv, "--out", str(tmp_path), "--json", "--no-progress"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["ball_model"] == "full"
+    for key in ("eta", "W_cycle_Nmm", "U_max_Nmm", "disp_at_peak_mm", "balls", "preload_step"):
+        assert key in out
+    assert out["preload_step"]["dissipation_Nmm"] == 0.0
+    assert out["energy_balance_rel_err"] < 1e-4
+    assert out["ball_friction_work_loop_Nmm"] >= 0.0
+    plus = out["balls"]["plus_Fg"]
+    loads = [b["inner_load_N"] for b in plus if b["bearing"] == 0]
+    assert loads[0] == max(loads)
+    assert (tmp_path / "fields" / "cycle.pvd").is_file()
+    assert (tmp_path / "loop.csv").is_file()
+    assert list((tmp_path / "cache").glob("ball_rig_*.npz"))
 
 
 MODEL = """[hinge]
