@@ -157,8 +157,8 @@ def solve_bordered(
     if len(factor.keys) == 0:
         return np.zeros(0), np.zeros(k)
     if k == 0:
-        return sla.lu_solve(factor.lu, b, trans=1, check_finite=False), np.zeros(0)
-    Y = sla.lu_solve(factor.lu, np.column_stack([b, Jalpha]), trans=1, check_finite=False)
+        return lu_solve(factor.lu, b), np.zeros(0)
+    Y = lu_solve(factor.lu, np.column_stack([b, Jalpha]))
     U, sv, Vt = np.linalg.svd(H @ Y[:, 1:])  # Schur complement S, (k, k)
     good = sv > max(cut, float(sv[0]) * np.finfo(float).eps * k)
     coef = (U[:, good].T @ (H @ Y[:, 0] - h)) / sv[good]

@@ -102,6 +102,7 @@ def _rescue(
     cut: float,
     count: int,
     threads: int | None,
+    single_min: int | None = None,
 ) -> _Rescued:
     """Leave a stall: alternately a contact predictor (if points are open) and a new r.
 
@@ -110,14 +111,18 @@ def _rescue(
     every open point. It then takes the full Newton step with those points closed and
     frictionless. The r change (``r_base`` times the next of ``RESCUE_FACTORS``) keeps the
     iterate but changes the merit and the active-set path. Neither changes the solution,
-    and the alternation keeps Newton from repeating a cycle.
+    and the alternation keeps Newton from repeating a cycle. The predictor is taken
+    unchecked, so from ``single_min`` unknowns its LU is float32 (at level 1 of the hinge
+    it closes every point: a 9 400-unknown LU).
     """
     is_open = it.law.status == ContactStatus.OPEN
     if count % 2 == 0 and np.any(is_open):
         approach = _approach(prob, it, is_open)
         if approach is not None:
             it, is_open = evaluate(prob, it.p, approach[0], r), approach[1]
-        step = newton_step(prob, it, r, cut, force_closed=is_open, threads=threads)
+        step = newton_step(
+            prob, it, r, cut, force_closed=is_open, threads=threads, single_min=single_min
+        )
         if step is not None:
             return _Rescued(evaluate(prob, it.p + step.dp, step.alpha_new, r), r)
     new_r = r_base * RESCUE_FACTORS[(count // 2) % len(RESCUE_FACTORS)]
@@ -207,7 +212,9 @@ def newton_loop(
             return Run(it, r, n_iter, tuple(history), rescues, n_factor, True)
         n_factor += 0 if step is None else step.factorizations
         if new is None:
-            rescued = _rescue(prob, it, r, r_base, cut, rescues, settings.lu_threads)
+            rescued = _rescue(
+                prob, it, r, r_base, cut, rescues, settings.lu_threads, settings.krylov.single_min
+            )
             rescues += 1
             r, new, factor = rescued.law_r, rescued.iterate, None
         elif step is not None:

@@ -245,6 +245,7 @@ def newton_step(
     force_closed: npt.NDArray[np.bool_] | None = None,
     reuse: Factor | None = None,
     threads: int | None = None,
+    single_min: int | None = None,
 ) -> Step | None:
     """Solve the reduced generalised-Newton system by dense LU; None if it is singular.
 
@@ -260,6 +261,9 @@ def newton_step(
         force_closed: Points to close if open, shape (m,), bool (default none).
         reuse: Factors of an earlier step to reuse when the layout matches.
         threads: BLAS threads of a large LU (see :func:`fe.contact.dense.lu_threads`).
+        single_min: Factorise in float32 from this many unknowns (None: never); the step
+            is then accurate to single precision only, for a predictor whose result is
+            evaluated on the exact residual (the rescue's).
 
     Returns:
         The full Newton step, or None if the reduced matrix is numerically singular.
@@ -271,7 +275,8 @@ def newton_step(
     else:
         all_points = np.arange(len(it.p), dtype=np.int64)
         J = form_jacobian(prob.W, all_points, lin, symmetric=prob.symmetric)
-        factor = factor_jacobian(J, lin.keys, threads)
+        single = single_min is not None and len(lin.keys) >= single_min
+        factor = factor_jacobian(J, lin.keys, threads, single=single)
     if factor is None:
         return None
     dq, alpha_new = solve_bordered(factor, lin.Jalpha, lin.H, lin.b, lin.h, cut)

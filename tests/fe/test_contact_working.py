@@ -158,3 +158,17 @@ def test_a_grown_working_set_keeps_the_base_lu_on_the_same_slots():
 
     np.testing.assert_array_equal(slots(new, carried.factor.keys), slots(old, base.factor.keys))
     np.testing.assert_array_equal(new[carried.closed], old[base.closed])
+
+
+def test_a_single_precision_predictor_lands_where_the_float64_one_does():
+    """The rescue's predictor (taken unchecked) from a float32 LU: the same iterate to 1e-5."""
+    from fe.contact import globalise as contact_globalise
+
+    W = random_W(30, 13)
+    prob, it, r = iterate(W, 14, k=3)
+    assert np.any(it.law.status == 0)  # open points: the predictor closes them
+    exact = contact_globalise._rescue(prob, it, r, r, 0.0, 0, None)
+    single = contact_globalise._rescue(prob, it, r, r, 0.0, 0, None, single_min=1)
+    scale = np.max(np.abs(exact.iterate.p))
+    np.testing.assert_allclose(single.iterate.p, exact.iterate.p, atol=1e-5 * scale)
+    assert not np.array_equal(single.iterate.p, exact.iterate.p)  # it was float32
