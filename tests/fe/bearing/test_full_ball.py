@@ -186,3 +186,76 @@ def test_full_balls_with_frictional_fits_are_refused_by_name():
 def test_rig_is_written_to_the_folder_the_environment_names(tmp_path, monkeypatch):
     monkeypatch.setenv("HINGELAB_CACHE_DIR", str(tmp_path / "c"))
     assert ball_rig.rig_cache_dir() == Path(tmp_path / "c")
+
+
+# --- the cycle: full against hertz (slow) -----------------------------------------------
+
+DELTA_RTOL = 0.025
+"""δ(±Fg), full against hertz: the one-ball rig's total approach is within 2.2 % of Hertz at
+``MESH_LEVELS[0]`` (bench_one_ball.txt); the balls carry part of the hinge's compliance
+(the rest is the same structure in both models), so δ can differ by at most that, 2.5 %
+rounded up."""
+
+ETA_ATOL = 1e-3
+"""η, full against hertz (both integrated with the trapezoid): 1/16 of the smallest η of
+the paper's Table 4 (0.0161) — the ball model may not account for a visible part of it."""
+
+
+@pytest.fixture(scope="module")
+def structure():
+    from cad.bearing import make_bearing_hinge, without_balls
+    from fe.bearing.system import build_bearing_system
+    from mesh.build import mesh_hinge
+    from mesh.settings import MeshSettings
+
+    p = BearingHingeParams()
+    mesh, _ = mesh_hinge(
+        without_balls(make_bearing_hinge(p)),
+        MeshSettings.for_hinge(
+            "bearing", balls=False, size_mm=4.0, contact_size_mm=0.8,
+            part_sizes_mm=(("ring", 1.2),),
+        ),
+    )  # fmt: skip
+    return build_bearing_system(mesh, p)
+
+
+def _trapezoid_eta(result) -> float:
+    import math
+
+    incs = tuple(dataclasses.replace(i, stiffness_n_per_mm=math.nan) for i in result.increments)
+    return float(dataclasses.replace(result, increments=incs).metrics()["eta"])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fp", [0.0, 100.0], ids=["Fp0", "Fp100"])
+def test_full_and_hertz_cycles_agree(structure, rig, fp):
+    """δ(±Fg) and η of the whole cycle at F_g = 400 N, μ = 0.2; and what only full has.
+
+    The coupling to the structure is the same patch average in both models, so their
+    difference is the ball model alone: a meshed ball with micro-slip in its patches
+    against the closed-form Hertz ball.
+    """
+    from fe.bearing.cycle import run_bearing_cycle
+    from fe.bearing.full_cycle import run_full_cycle
+    from fe.hinge.protocol import CycleSettings
+
+    settings = CycleSettings(amplitude_n=400.0, mu=0.2)
+    hertz = run_bearing_cycle(structure, settings, fp).result
+    fc = run_full_cycle(structure, settings, fp, grid=MESH_LEVELS[0])
+    full = fc.cycle.result
+    mh, mf = hertz.metrics(), full.metrics()
+    for key in ("disp_at_peak_mm", "disp_at_minus_peak_mm"):
+        assert mf[key] == pytest.approx(mh[key], rel=DELTA_RTOL)
+    assert mf["eta"] == pytest.approx(_trapezoid_eta(hertz), abs=ETA_ATOL)
+    # the preload seats the balls frictionless: nothing dissipates
+    assert fc.cycle.preload.dissipation_Nmm == 0.0
+    # energy: friction + open/close work of every rig contact against the loop area
+    assert mf["energy_balance_rel_err"] < 1e-4
+    fric = [i.friction_work for i in full.increments]
+    assert sum(fric) > 0.0
+    # the balls carry the clevis force: Σ radial ball forces on the pin's rings = F
+    st = full.states[-1]
+    assert float(np.sum(st.p[:, 1] * np.cos(structure.balls.theta))) == pytest.approx(
+        full.increments[-1].force_n, rel=1e-3
+    )
+    assert max(fc.outer_iterations) <= 20
