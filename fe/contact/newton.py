@@ -155,6 +155,10 @@ def evaluate(
 def sparse_product(W: FloatArray, x: FloatArray, symmetric: bool = True) -> FloatArray:
     """Return ``W x`` from the rows (symmetric ``W``) of the points where ``x ≠ 0``.
 
+    The rows are read in runs of consecutive points, as slices (views): gathering them
+    with an index array copied them first, which at 9 400 rows and half of them nonzero
+    took ten times as long as the full product (0.5 s against 0.05 s); the runs take half.
+
     Args:
         W: Matrix, shape (3m, 3m), float64.
         x: Per-point vector, shape (m, 3), float64; typically nonzero on few points.
@@ -164,12 +168,19 @@ def sparse_product(W: FloatArray, x: FloatArray, symmetric: bool = True) -> Floa
         ``W x`` flattened, shape (3m,), float64.
     """
     support = np.flatnonzero(np.any(x != 0.0, axis=1))
-    if not symmetric or 2 * len(support) > len(x):  # the gather would read most of W anyway
+    if not symmetric or 4 * len(support) > 3 * len(x):  # the runs would read most of W
         out: FloatArray = W @ x.ravel()
         return out
-    dofs = (3 * support[:, None] + np.arange(3)).ravel()
-    # W symmetric: W x = Σ_j x_j W[j, :] over the nonzero x_j (contiguous rows).
-    rows: FloatArray = x[support].ravel() @ W[dofs]
+    # W symmetric: W x = Σ_j x_j W[j, :] over the nonzero x_j, run by run.
+    breaks = np.flatnonzero(np.diff(support) != 1) + 1
+    starts = support[np.concatenate([[0], breaks])] if len(support) else support
+    ends = (
+        support[np.concatenate([breaks - 1, [len(support) - 1]])] + 1 if len(support) else support
+    )
+    flat = x.ravel()
+    rows = np.zeros(W.shape[1])
+    for a, b in zip(3 * starts, 3 * ends, strict=True):
+        rows += flat[a:b] @ W[a:b]
     return rows
 
 

@@ -188,6 +188,14 @@ def test_sparse_product_equals_the_full_product(n_nonzero):
     np.testing.assert_allclose(contact_newton.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
 
 
+def test_sparse_product_reads_runs_of_rows():
+    """Support in runs of consecutive points, at both ends and alone: still W x."""
+    W = random_W(30, 7)
+    x = np.zeros((30, 3))
+    x[[0, 1, 2, 7, 12, 13, 14, 15, 29]] = np.random.default_rng(9).normal(size=(9, 3))
+    np.testing.assert_allclose(contact_newton.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
+
+
 def test_state_w_is_the_exact_product_after_line_searches():
     """The line search updates W p incrementally; the reported w is W p + G α + w_free."""
     W = random_W(40, 9)
