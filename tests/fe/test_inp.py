@@ -440,3 +440,25 @@ def test_sta_reader_counts_attempts(tmp_path):
     assert parse_sta(sta) == StaSummary(increments=2, iterations=16, cutbacks=1, last_time=1.05)
     with pytest.raises(DataError, match=r"no such \.sta"):
         parse_sta(tmp_path / "missing.sta")
+
+
+def test_conforming_mesh_starts_without_overclosure():
+    """The cross-check's mesh: every pin contact node is a hole node at Δr = 0.
+
+    With uniform arcs and one contact size on both sides (``slave_ratio`` 1), pin and hole
+    facets are the same chords, so ccx's faceted surfaces touch without overclosure and
+    the deck needs no ADJUST (tests/fe/test_ccx_crosscheck.py).
+    """
+    pytest.importorskip("gmsh")
+    from cad.general import GeneralHingeParams, make_general_hinge
+    from mesh.build import mesh_hinge
+    from mesh.settings import MeshSettings
+
+    model = make_general_hinge(GeneralHingeParams(clearance_mm=0.0))
+    mesh, _ = mesh_hinge(model, MeshSettings.coarse(slave_ratio=1.0, arc_grading=1.0))
+    for pair in mesh.pairs:
+        pin = mesh.nodes[mesh.set_nodes(pair.slave)]
+        hole = mesh.nodes[mesh.set_nodes(pair.master)]
+        dist = np.linalg.norm(pin[:, None, :] - hole[None, :, :], axis=2).min(axis=1)
+        assert dist.max() < 1e-9, pair.name
+        assert len(pin) == len(hole), pair.name
