@@ -37,7 +37,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from cad.errors import check_range
-from fe.contact.dense import lu_solve
+from fe.contact.dense import gather_block, lu_solve
 from fe.contact.gmres import gmres
 from fe.contact.law import ContactStatus
 from fe.contact.newton import (
@@ -197,7 +197,7 @@ def _ensure_block(prob: Problem, closed: IntArray, ws: Workspace) -> IntArray:
             block, ws.W_block = np.arange(m, dtype=np.int64), None  # None: W itself
         else:
             dofs = (3 * closed[:, None] + np.arange(3)).ravel()
-            block, ws.W_block = closed, prob.W[np.ix_(dofs, dofs)]
+            block, ws.W_block = closed, gather_block(prob.W, dofs)
         ws.block = block
     return block
 

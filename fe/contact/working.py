@@ -30,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ConvergenceError
+from fe.contact.dense import gather_block
 from fe.contact.krylov import workspace_for
 from fe.contact.law import ContactStatus
 from fe.contact.newton import Iterate, Problem, Solved, evaluate, sparse_product
@@ -111,7 +112,7 @@ def _restricted(prob: Problem, points: IntArray) -> tuple[IntArray, FloatArray, 
     ):
         return kept.points, kept.W_sub, kept.w_sum_sub
     dofs = _dofs(points)
-    W_sub = prob.W[np.ix_(dofs, dofs)]
+    W_sub = gather_block(prob.W, dofs)
     w_sum_sub = float(np.sum(W_sub))
     if kept is not None and kept.ref() is prob.W:
         _carry_base(kept.W_sub, kept.w_sum_sub, kept.points, W_sub, w_sum_sub, points)

@@ -188,6 +188,17 @@ def test_sparse_product_equals_the_full_product(n_nonzero):
     np.testing.assert_allclose(contact_newton.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
 
 
+def test_gather_block_is_the_ix_block(monkeypatch):
+    from fe.contact import dense as contact_dense
+
+    monkeypatch.setattr(contact_dense, "GATHER_ROWS", 7)  # several chunks, a ragged last one
+    W = random_W(30, 7)
+    idx = np.array([0, 3, 4, 5, 11, 12, 20, 21, 22, 23, 24, 25, 26, 28, 29, 30, 60, 89])
+    out = contact_dense.gather_block(W, idx)
+    np.testing.assert_array_equal(out, W[np.ix_(idx, idx)])
+    assert out.flags.c_contiguous
+
+
 def test_sparse_product_reads_runs_of_rows():
     """Support in runs of consecutive points, at both ends and alone: still W x."""
     W = random_W(30, 7)
