@@ -62,7 +62,7 @@ DEFAULT_RIG_LEVEL = 1
 """Mesh level (``fe.bearing.one_ball.MESH_LEVELS``) of the rig the cycle uses by default:
 the level verified against Hertz within 2.5 % (``docs/one_ball_hertz.md``)."""
 
-RIG_FORMAT = 1
+RIG_FORMAT = 2
 """Version of the cached rig's file layout (part of its key)."""
 
 GRIP_X, GRIP_Z, BALL_X, BALL_Z, BALL_ROT_Y = range(5)
@@ -95,6 +95,8 @@ class FrictionRig:
         race_of: Raceway of each contact point (0 inner, 1 outer), shape (m,).
         normal: Each point's contact normal (master → slave) in the local frame,
             shape (m, 3).
+        rim: Points on the edge of their contact window, shape (m,), bool: a closed
+            one means the patch may reach beyond the window.
         n_dof: Degrees of freedom of the rig's mesh.
         timings_s: Mesh, assembly, factorisation and condensation wall times [s].
     """
@@ -106,6 +108,7 @@ class FrictionRig:
     G_ball: FloatArray
     race_of: IntArray
     normal: FloatArray
+    rim: npt.NDArray[np.bool_]
     n_dof: int
     timings_s: dict[str, float]
 
@@ -251,9 +254,25 @@ def build_friction_rig(
         np.ascontiguousarray(G[:, 2:]),
         race_of,
         np.asarray(geo.frame[:, 0, :]),
+        window_rim(np.asarray(mesh.nodes)[geo.slave], race_of),
         system.n_dof,
         timings,
     )
+
+
+def window_rim(xyz: FloatArray, race_of: IntArray) -> npt.NDArray[np.bool_]:
+    """Points on the edge of their raceway's contact window (largest |x| or y), (m,) bool.
+
+    Args:
+        xyz: Slave node positions in the local frame, shape (m, 3) [mm].
+        race_of: Raceway of each point, shape (m,).
+    """
+    rim = np.zeros(len(xyz), dtype=bool)
+    for k in np.unique(race_of):
+        sel = race_of == k
+        x, y = np.abs(xyz[sel, 0]), xyz[sel, 1]
+        rim[sel] = (x >= x.max() - 1e-9) | (y >= y.max() - 1e-9)
+    return rim
 
 
 def rig_key(grid: BallBlockGrid, params: BearingHingeParams) -> str:
@@ -333,6 +352,7 @@ def _write(path: Path, rig: FrictionRig) -> None:
             G_ball=rig.G_ball,
             race_of=rig.race_of,
             normal=rig.normal,
+            rim=rig.rim,
             n_dof=np.array(rig.n_dof),
             timings=np.array(json.dumps(rig.timings_s)),
         )
@@ -355,6 +375,7 @@ def _read(path: Path, grid: BallBlockGrid) -> FrictionRig | None:
                 np.array(z["G_ball"]),
                 np.array(z["race_of"], dtype=np.int64),
                 np.array(z["normal"]),
+                np.array(z["rim"], dtype=bool),
                 int(z["n_dof"]),
                 {k: float(v) for k, v in json.loads(str(z["timings"])).items()},
             )

@@ -173,6 +173,7 @@ def solve_full_state(
     Raises:
         ConvergenceError: If Newton or a local contact solve does not converge
             (increment −1: set by the caller).
+        ParameterError: If a converged ball's contact reaches the edge of the rig's window.
     """
     n = system.n_balls
     W, G = system.W, system.G
@@ -247,6 +248,13 @@ def solve_full_state(
                 break
             t *= 0.5
         v, alpha, steps, r1, r2 = v_try, a_try, s_try, q1, q2
+    for j, s in enumerate(steps):
+        if np.any(s.state.p[law.rig.rim, 0] > 0.0):
+            raise ParameterError(
+                f"ball {j}'s contact reaches the edge of the rig's contact window at "
+                f"Q = {s.load_n:.4g} N, contact angle {force_angles(s.force_n[None])[0]:.2f}°: "
+                "widen fine_x/fine_y of the rig's grid"
+            )
     return _state(system, v.reshape(n, 2), alpha, steps, it)
 
 

@@ -149,6 +149,16 @@ def test_an_unloaded_ball_costs_no_solve(rig, params, balls):
     assert step.n_closed == 0
 
 
+def test_the_window_rim_flags_a_patch_that_leaves_the_window(rig, params, balls):
+    """Far across the groove (the contact line turned ~25°) the patch reaches the rim."""
+    law = _law(rig, params, balls, 0.0)
+    assert 0 < np.count_nonzero(rig.rim) < rig.n_points // 2
+    near = law.solve(0, law.maps[0].T @ np.array([1e-3, 3e-3]), law.initial_state())
+    assert not np.any(near.state.p[rig.rim, 0] > 0.0)
+    far = law.solve(0, law.maps[0].T @ np.array([0.09, 3e-3]), law.initial_state())
+    assert np.any(far.state.p[rig.rim, 0] > 0.0)
+
+
 def test_the_rig_is_cached_by_grid_and_bearing(tmp_path, params, rig, monkeypatch):
     """A second process reads the file instead of building (memo cleared to stand for it)."""
     monkeypatch.setattr(ball_rig, "_MEMO", {})
