@@ -226,8 +226,9 @@ def _without(prob: Problem, it: Iterate, points: IntArray, r_base: FloatArray) -
         return it
     p = it.p.copy()
     p[dropped] = 0.0
-    # W symmetric: remove the dropped points' rows from W p
-    Wp = it.Wp - (it.p[dropped].ravel() @ prob.W[_dofs(dropped)]).reshape(-1, 3)
+    gone = np.zeros_like(p)
+    gone[dropped] = it.p[dropped]
+    Wp = it.Wp - sparse_product(prob.W, gone).reshape(-1, 3)  # W symmetric: their rows
     return evaluate(prob, p, it.alpha, r_base, Wp)
 
 

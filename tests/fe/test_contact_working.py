@@ -172,3 +172,37 @@ def test_a_single_precision_predictor_lands_where_the_float64_one_does():
     scale = np.max(np.abs(exact.iterate.p))
     np.testing.assert_allclose(single.iterate.p, exact.iterate.p, atol=1e-5 * scale)
     assert not np.array_equal(single.iterate.p, exact.iterate.p)  # it was float32
+
+
+def test_an_extrapolated_start_with_tension_outside_the_set_is_dropped(monkeypatch):
+    """Points the start loads in tension (an extrapolation past opening) are zeroed first."""
+    W, G, w_free = pin_in_hole()
+    settings = ContactSettings(mu=0.3)
+    prev = solve_increment(W, w_free, ContactState.initial(len(w_free), 3), settings,
+                           G=G, e=np.array([10.0, 0.0, 0.0])).state  # fmt: skip
+    e = np.array([12.0, 1.0, 0.0])
+    full = solve_increment(W, w_free, prev, settings, G=G, e=e)
+    far = np.flatnonzero(prev.w[:, 0] > np.quantile(prev.w[:, 0], 0.8))
+    start_p = np.array(prev.p)
+    start_p[far, 0] = -1e-3 * np.max(prev.p[:, 0])  # tension where the points are far open
+    dropped = []
+    without = contact_working._without
+
+    def spy(prob, it, points, r):
+        dropped.append(np.setdiff1d(far, points).size)
+        return without(prob, it, points, r)
+
+    monkeypatch.setattr(contact_working, "_without", spy)
+    ws = solve_increment(
+        W,
+        w_free,
+        prev,
+        ContactSettings(mu=0.3, working_set=True),
+        G=G,
+        e=e,
+        start=(start_p, np.array(prev.alpha)),
+    )
+    assert dropped
+    assert dropped[0] > 0
+    np.testing.assert_allclose(ws.state.p, full.state.p, atol=1e-9 * np.max(np.abs(full.state.p)))
+    np.testing.assert_array_equal(ws.state.status, full.state.status)
