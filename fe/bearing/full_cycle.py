@@ -270,12 +270,14 @@ def full_preload(
     preload_n: float,
     settings: CycleSettings,
     *,
-    with_friction: bool = False,
+    friction_steps: int = 0,
 ) -> tuple[PreloadResult, FullState]:
     """Set the pair down to the plate force F_p with meshed balls (step 1).
 
-    Frictionless unless ``with_friction`` (module docstring); starts from the ``hertz``
-    preload state.
+    Frictionless by default (module docstring); starts from the ``hertz`` preload state.
+    With ``friction_steps = n > 0`` the plate force is instead raised in n equal steps
+    with the balls' friction on (the first step seats them: a ball that was unloaded
+    re-seats frictionless), to measure what a frictional preload would dissipate.
 
     Raises:
         ParameterError: If ``preload_n`` is outside [0, 500] N.
@@ -284,21 +286,25 @@ def full_preload(
     n = system.n_balls
     hertz = preload_step(system, preload_n, settings)  # validates preload_n
     start = law.initial_state()
-    zero = FullState(hertz.balls, (start,) * n, np.zeros((n, 2)), 0.0, 0.0, 0.0, 0, 0, 0, 0)
+    st = FullState(hertz.balls, (start,) * n, np.zeros((n, 2)), 0.0, 0.0, 0.0, 0, 0, 0, 0)
     if preload_n == 0.0:
-        return PreloadResult(0.0, 0.0, 0.0, hertz.balls, 0.0), zero
-    pre_law = law if with_friction else law.with_mu(0.0)
+        return PreloadResult(0.0, 0.0, 0.0, hertz.balls, 0.0), st
+    pre_law = law if friction_steps > 0 else law.with_mu(0.0)
+    fric = 0.0
     try:
-        st = solve_full_state(
-            system,
-            pre_law,
-            zero,
-            hertz.balls.v_mm,
-            hertz.balls.alpha,
-            (GRIP_X, GRIP_Z, PRELOAD),
-            np.array([0.0, 0.0, preload_n]),
-            ref_load_n=preload_n,
-        )
+        for j in range(1, max(friction_steps, 1) + 1):
+            f = preload_n * j / max(friction_steps, 1)
+            st = solve_full_state(
+                system,
+                pre_law,
+                st,
+                hertz.balls.v_mm * (j / max(friction_steps, 1)) ** (2.0 / 3.0),
+                hertz.balls.alpha * (j / max(friction_steps, 1)) ** (2.0 / 3.0),
+                (GRIP_X, GRIP_Z, PRELOAD),
+                np.array([0.0, 0.0, f]),
+                ref_load_n=f,
+            )
+            fric += st.friction_work
     except ConvergenceError as err:
         raise ConvergenceError(
             f"the preload step with meshed balls (F_p = {preload_n:g} N) did not converge",
@@ -306,14 +312,16 @@ def full_preload(
             iteration=err.iteration,
             residual=err.residual,
         ) from err
-    law.n_solves += pre_law.n_solves if pre_law is not law else 0
+    if pre_law is not law:
+        law.n_solves += pre_law.n_solves
+        law.n_skipped += pre_law.n_skipped
     pre = PreloadResult(
         preload_n,
         float(st.balls.alpha[PRELOAD]),
         float(st.balls.alpha[GRIP_Z]),
         st.balls,
         elastic_energy_full(system, st),
-        st.friction_work,
+        fric,
     )
     return pre, st
 
