@@ -1,7 +1,7 @@
 """Closed-form and reduced models of the bearing hinge's ball bearings.
 
 The foundations the bearing-hinge cycle (``--ball-model hertz``) and its verification
-rest on; this sub-package imports ``cad``, numpy and scipy, and nothing else from ``fe``.
+rest on; these closed forms import ``cad``, numpy and scipy, and nothing else from ``fe``.
 
 * :mod:`fe.bearing.hertz` — Hertz point contact of two curved bodies: curvature sum and
   difference, the ellipticity from the exact elliptic-integral equation (or Hamrock &
@@ -11,6 +11,11 @@ rest on; this sub-package imports ``cad``, numpy and scipy, and nothing else fro
   with the change of contact angle) and a preloaded pair: load sharing, stiffness, lift-off.
 * :mod:`fe.bearing.rings` — Jones' five-DOF equilibrium of the shared inner ring under
   radial, axial and moment load: per-ball loads Q_ψ and contact angles, stiffness matrix.
+
+The hinge's cycles build on them: :mod:`fe.bearing.cycle` (``hertz`` balls),
+:mod:`fe.bearing.fit_cycle` (frictional fits) and :mod:`fe.bearing.full_cycle` (``full``
+balls: the meshed one-ball rig of :mod:`fe.bearing.ball_rig`, condensed once with friction,
+as the contact law of every ball, :mod:`fe.bearing.meshed_ball`).
 
 A 708C ball (3.969 mm, pitch 15 mm, 15°) on its inner race (f_i = 0.52), 200 N:
 

@@ -288,6 +288,8 @@ def rig_key(grid: BallBlockGrid, params: BearingHingeParams) -> str:
             "outer_curvature_ratio",
             "bore_mm",
             "outer_diameter_mm",
+            "width_mm",
+            "arrangement",
             "bearing_material",
         )
     }
