@@ -10,10 +10,15 @@ memory is the process's maximum resident set (``wait4``).
 Run:
     .venv/bin/python benchmarks/bench_calculix.py [coarse,default] [timeout_s] [mu] [ccx_steps]
 
-``ccx_steps`` < 3 runs ccx on the first steps only (ours always runs the whole cycle): ccx
-does not finish the cycle (docs/calculix_crosscheck.md), so its first loading is a
-lower bound of its cost.
+``ccx_steps`` < 3 runs ccx on the first steps only (ours always runs the whole cycle): with
+the default node-to-surface deck ccx does not finish the cycle (docs/calculix_crosscheck.md),
+so its first loading is a lower bound of its cost.
     .venv/bin/python benchmarks/bench_calculix.py penalty   # frictionless δ(+Fg) vs slope
+    .venv/bin/python benchmarks/bench_calculix.py mortar [clearance_mm] [timeout_s]
+
+``mortar``: the whole cycle in both solvers on the conforming coarse mesh of the slow
+cross-check (uniform arcs, pin and hole nodes at the same angles), ccx with the exact
+mortar deck (``DeckSettings.exact_mortar``), which completes it; with the loop figures.
 
 The table goes into docs/calculix_crosscheck.md.
 """
@@ -36,6 +41,7 @@ ROOT = Path(__file__).resolve().parents[1]
 AMPLITUDE_N = 400.0
 MU = 0.2
 PENALTIES = (1e4, 1e5, 1e6, 1e7, 1e8)
+CONFORMING = {"slave_ratio": 1.0, "arc_grading": 1.0}
 
 
 def model_file(folder: Path, mesh: str, clearance_mm: float = 0.0, mu: float = MU) -> Path:
@@ -45,7 +51,10 @@ def model_file(folder: Path, mesh: str, clearance_mm: float = 0.0, mu: float = M
     from mesh.settings import MeshSettings
     from validation.model_file import ModelSpec, write_model
 
-    settings = MeshSettings.coarse() if mesh == "coarse" else MeshSettings()
+    if mesh == "conforming":
+        settings = MeshSettings.coarse(**CONFORMING)
+    else:
+        settings = MeshSettings.coarse() if mesh == "coarse" else MeshSettings()
     spec = ModelSpec(
         "general",
         GeneralHingeParams(clearance_mm=clearance_mm),
@@ -136,6 +145,64 @@ def _ccx(deck: Path, timeout_s: float) -> tuple[float, float, int]:
     return wall, mb, rc
 
 
+def mortar_row(folder: Path, clearance_mm: float, timeout_s: float) -> dict[str, object]:
+    """The whole cycle in both solvers on the conforming mesh, ccx with exact mortar contact."""
+    from cad.general import GeneralHingeParams, make_general_hinge
+    from fe.effects import REGISTRY
+    from fe.interop.ccx import loop_figures, loop_from_dat, parse_dat, parse_sta
+    from fe.interop.inp import GRIP_REF_SET, DeckSettings, write_deck
+    from mesh.build import mesh_hinge
+    from validation.model_file import read_model
+
+    toml = model_file(folder, "conforming", clearance_mm=clearance_mm)
+    out = folder / "ours_conforming"
+    hingelab = str(ROOT / ".venv" / "bin" / "hingelab")
+    argv = [hingelab, "cycle", "--model", str(toml), "--out", str(out), "--no-progress"]
+    ours_s, ours_mb, _ = timed([*argv, "--frames", "0"], timeout_s)
+    result = json.loads((out / "result.json").read_text())
+    spec = read_model(toml, REGISTRY)
+    if not isinstance(spec.hinge, GeneralHingeParams):
+        raise TypeError(f"{toml}: expected the general hinge, got {type(spec.hinge).__name__}")
+    model = make_general_hinge(spec.hinge)
+    mesh, _ = mesh_hinge(model, spec.mesh)
+    settings = DeckSettings.exact_mortar(amplitude_n=AMPLITUDE_N, mu=MU, clearance_mm=clearance_mm)
+    deck = write_deck(mesh, model.faces, settings, folder / "ccx_mortar" / "hinge.inp")
+    ccx_s, ccx_mb, ccx_rc = _ccx(deck, timeout_s)
+    sta = parse_sta(deck.with_suffix(".sta"))
+    done = ccx_rc == 0 and sta.last_time > 2.999
+    ratios = [float("nan")] * 3
+    if done:  # a run stopped by the time limit has no loop to measure
+        loop = loop_from_dat(parse_dat(deck.with_suffix(".dat")), GRIP_REF_SET, ["tang_fixed"])
+        theirs = loop_figures(
+            loop.hinge_force_n,
+            loop.grip_disp_mm,
+            loop.step,
+            AMPLITUDE_N,
+            free_play_mm=4.0 * clearance_mm,
+        )
+        ratios = [
+            theirs.disp_at_plus_mm / result["disp_at_peak_mm"],
+            theirs.disp_at_minus_mm / result["disp_at_minus_peak_mm"],
+            theirs.area_nmm / result["W_cycle_Nmm"],
+        ]
+    return {
+        "clearance_mm": clearance_mm,
+        "n_hex": result["n_hex"],
+        "ours_s": ours_s,
+        "ours_MB": ours_mb,
+        "ccx_s": ccx_s,
+        "ccx_MB": ccx_mb,
+        "ccx_incs": sta.increments,
+        "ccx_iters": sta.iterations,
+        "ccx_ok": done,
+        "time_ratio": ccx_s / ours_s,
+        "mem_ratio": ccx_mb / ours_mb,
+        "d_plus_ratio": ratios[0],
+        "d_minus_ratio": ratios[1],
+        "area_ratio": ratios[2],
+    }
+
+
 def penalty_table(folder: Path) -> list[dict[str, object]]:
     """Frictionless first loading: ccx's δ(+Fg) per penalty slope against ours (μ = 0)."""
     from fe.interop.ccx import loop_from_dat, parse_dat, run_ccx
@@ -164,7 +231,7 @@ def penalty_table(folder: Path) -> list[dict[str, object]]:
         for r in rows
         if r.split(",")[2] == "0" and float(r.split(",")[0]) == AMPLITUDE_N
     )
-    table = []
+    table: list[dict[str, object]] = []
     for contact in ("node", "surface"):
         for k in PENALTIES:
             deck = folder / f"pen_{contact}_{k:g}" / "hinge.inp"
@@ -196,7 +263,12 @@ if __name__ == "__main__":
         print("bench_calculix: no ccx on PATH (apt-get install calculix-ccx); skipped")
         sys.exit(0)
     with tempfile.TemporaryDirectory(prefix="bench_calculix_") as tmp:
-        if args[:1] == ["penalty"]:
+        if args[:1] == ["mortar"]:
+            clearance = float(args[1]) if len(args) > 1 else 0.0
+            timeout = float(args[2]) if len(args) > 2 else 2400.0
+            row = mortar_row(Path(tmp), clearance, timeout)
+            print_table([row], list(row))
+        elif args[:1] == ["penalty"]:
             rows = penalty_table(Path(tmp))
             print_table(
                 rows, ["contact", "penalty_MPa_per_mm", "ccx_um", "ours_um", "rel_diff", "ccx_s"]
