@@ -4,8 +4,12 @@
   C3D8I elements per part, materials, named node/element/surface sets, frictional contact
   pairs (slave = pin side), ties, the grip boundary conditions and the load history
   0 → +Fg → −Fg → +Fg as three ``*STEP`` blocks, all commented;
-* :mod:`fe.interop.ccx` — run CalculiX (``ccx``) on a deck and read its ``.dat`` file:
-  the grip displacement and the force through the hinge per increment.
+* :mod:`fe.interop.deck_settings` — what the deck is asked to be (``DeckSettings``: load,
+  penalty or mortar contact, stick slope, increments, ccx tolerances; re-exported by
+  ``fe.interop.inp``);
+* :mod:`fe.interop.ccx` — run CalculiX (``ccx``) on a deck and read its ``.dat`` file
+  (the grip displacement and the force through the hinge per increment) and ``.sta`` file
+  (increments, iterations, cut-backs).
 
 Both import only ``cad``, ``mesh``, numpy and the standard library, so they do not move
 when the solver inside ``fe`` does. A one-element cube pulled by 100 N:
