@@ -14,9 +14,11 @@ and the full ``ρ`` must be ``<= tol``. Then it *is* a solution of the full prob
 same tolerance. Otherwise the excluded points that closed join the working set, with a
 margin from the motion the sub-solve found, and the sub-problem is solved again from where
 it stopped; after ``ROUNDS`` rounds (or if the set grows past ``MAX_FRACTION`` of the
-points) the full problem is solved from there. The set is kept per ``W`` between
-increments while it still holds the points needed with at most ``SLACK`` spare, so that
-the restricted ``W`` — and the Krylov workspace keyed by it, with its LU — carry over.
+points, or a sub-solve runs out of iterations) the full problem is solved from there with
+a budget of its own, so the working set never fails an increment the full solve solves.
+The set is kept per ``W`` between increments while it still holds the points needed with
+at most ``SLACK`` spare, so that the restricted ``W`` — and the Krylov workspace keyed by
+it, with its LU — carry over.
 """
 
 from __future__ import annotations
@@ -181,13 +183,14 @@ def solve_on_points(
         The converged iterate on the full problem (exact ``w``) and the summed counts.
 
     Raises:
-        ConvergenceError: As ``newton``; ``partial`` is the last iterate on all points.
+        ConvergenceError: As ``newton`` on the whole problem (the last resort).
     """
     m = len(it.p)
     it = _without(prob, it, points, r_base)
     start = it
     budget = settings.max_iter
     done: list[Solved] = []
+    wasted = 0  # iterations of a sub-solve that ran out of them
     for _round in range(ROUNDS):
         points, W_sub, w_sum_sub = _restricted(prob, points)
         sub = _sub_problem(prob, points, W_sub, w_sum_sub)
@@ -195,7 +198,13 @@ def solve_on_points(
         try:
             solved = newton(sub, sub_it, r_base[points], cut, settings, increment, budget)
         except ConvergenceError as err:
-            raise _expanded(err, prev, points, m) from err
+            # the whole problem from where the sub-solve stopped, with a budget of its own
+            stopped = _force_on_all_points(err, points, m)
+            if stopped is not None:
+                p, alpha = stopped
+                it = evaluate(prob, p, alpha, r_base, sparse_product(prob.W, p).reshape(-1, 3))
+            wasted = err.iteration
+            break
         budget -= solved.iterations
         done.append(solved)
         p = np.zeros((m, 3))
@@ -213,8 +222,11 @@ def solve_on_points(
         points = np.union1d(points, np.flatnonzero(closing | near)).astype(np.int64)
         if len(points) > MAX_FRACTION * m or budget <= 0:
             break
-    done.append(newton(prob, it, r_base, cut, settings, increment, max(budget, 1)))
-    return _summed(done, done[-1].it)
+    # The whole problem gets a budget of its own: the working set never fails an
+    # increment that the whole problem solves (it only costs the rounds' iterations).
+    done.append(newton(prob, it, r_base, cut, settings, increment, settings.max_iter))
+    summed = _summed(done, done[-1].it)
+    return summed._replace(iterations=summed.iterations + wasted)
 
 
 def _without(prob: Problem, it: Iterate, points: IntArray, r_base: FloatArray) -> Iterate:
@@ -260,21 +272,13 @@ def _summed(done: list[Solved], it: Iterate) -> Solved:
     )
 
 
-def _expanded(
-    err: ConvergenceError, prev: ContactState, points: IntArray, m: int
-) -> ConvergenceError:
-    """The sub-solve's error with its partial state on all points (zero force outside)."""
+def _force_on_all_points(
+    err: ConvergenceError, points: IntArray, m: int
+) -> tuple[FloatArray, FloatArray] | None:
+    """The stopped sub-solve's ``(p (m, 3), α)`` on all points (zero force outside)."""
     part = err.partial
     if not isinstance(part, ContactState):
-        return err
+        return None
     p = np.zeros((m, 3))
-    w = np.array(prev.w)
-    status = np.zeros(m, dtype=np.int8)
-    p[points], w[points], status[points] = part.p, part.w, part.status
-    return ConvergenceError(
-        str(err).split(" (increment")[0],
-        increment=err.increment,
-        iteration=err.iteration,
-        residual=err.residual,
-        partial=ContactState(p, w, status, part.alpha),
-    )
+    p[points] = part.p
+    return p, np.array(part.alpha)

@@ -206,3 +206,39 @@ def test_an_extrapolated_start_with_tension_outside_the_set_is_dropped(monkeypat
     assert dropped[0] > 0
     np.testing.assert_allclose(ws.state.p, full.state.p, atol=1e-9 * np.max(np.abs(full.state.p)))
     np.testing.assert_array_equal(ws.state.status, full.state.status)
+
+
+def test_a_sub_solve_out_of_iterations_falls_back_to_the_whole_problem(monkeypatch):
+    """A working-set solve that stops is continued on the whole problem, never raised."""
+    from cad.errors import ConvergenceError
+    from fe.contact import solve as contact_solve
+
+    W, G, w_free = pin_in_hole()
+    settings = ContactSettings(mu=0.3)
+    state = ContactState.initial(len(w_free), 3)
+    e = np.array([10.0, 0.0, 0.0])
+    prev = solve_increment(W, w_free, state, settings, G=G, e=e).state
+    e2 = np.array([11.0, 2.0, 0.5])
+    full = solve_increment(W, w_free, prev, settings, G=G, e=e2)
+    whole = contact_solve.newton
+    calls = []
+
+    def stalling(prob, it, r, cut, s, increment, max_iter=None):
+        calls.append(len(prob.w_free))
+        if len(prob.w_free) < len(w_free):  # a working-set sub-problem: give up at once
+            raise ConvergenceError(
+                "stalled",
+                increment=increment,
+                iteration=3,
+                residual=1.0,
+                partial=ContactState(it.p, it.w, it.law.status, it.alpha),
+            )
+        return whole(prob, it, r, cut, s, increment, max_iter)
+
+    monkeypatch.setattr(contact_solve, "newton", stalling)
+    ws = solve_increment(W, w_free, prev, ContactSettings(mu=0.3, working_set=True), G=G, e=e2)
+    assert calls[0] < len(w_free)
+    assert calls[-1] == len(w_free)
+    np.testing.assert_allclose(ws.state.p, full.state.p, atol=1e-9 * np.max(np.abs(full.state.p)))
+    np.testing.assert_array_equal(ws.state.status, full.state.status)
+    assert ws.iterations >= 3
