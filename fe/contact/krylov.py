@@ -72,10 +72,6 @@ class KrylovOptions:
         forcing: Relative GMRES tolerance is ``min(forcing, ρ²)`` (inexact Newton that
             keeps the final equilibrium error, hence the energy balance, at round-off).
         min_size: Smaller systems are always factorised (dense LU is cheap there).
-        unknowns_per_iter: On large systems ``refresh_iter`` and ``max_iter`` grow to
-            ``n_q / unknowns_per_iter`` and twice that: a factorisation costs ``O(n_q³)``
-            and a GMRES iteration ``O(n_q²)``, so the iterations one LU is worth grow
-            with ``n_q`` (measured: about 10 at 450 unknowns, 40 at 4 500).
         single_min: Reduced systems of at least this many unknowns get a float32 LU as
             their base (half the time of float64; it is a preconditioner, the steps
             still solve the exact system), with a float64 LU where GMRES fails on it.
@@ -87,7 +83,6 @@ class KrylovOptions:
     turn_cos: float = 0.9
     forcing: float = 1e-3
     min_size: int = 0
-    unknowns_per_iter: float = 100.0
     single_min: int = 2000
 
     def __post_init__(self) -> None:
@@ -98,14 +93,6 @@ class KrylovOptions:
         check_range("krylov.forcing", self.forcing, 0.0, 1.0, lo_open=True, hi_open=True)
         check_range("krylov.min_size", self.min_size, 0, float("inf"))
         check_range("krylov.single_min", self.single_min, 1, float("inf"))
-        check_range(
-            "krylov.unknowns_per_iter", self.unknowns_per_iter, 0.0, float("inf"), lo_open=True
-        )
-
-    def budget(self, n: int) -> tuple[int, int]:
-        """GMRES ``(max_iter, refresh_iter)`` for a system of ``n`` unknowns."""
-        refresh = max(self.refresh_iter, int(n / self.unknowns_per_iter))
-        return max(self.max_iter, 2 * refresh), refresh
 
 
 class Base(NamedTuple):
@@ -475,7 +462,7 @@ def _gmres_step(
     """The Newton step by GMRES preconditioned with ``ws.base``; None if that fails.
 
     ``refresh_after``: ask for a refactorisation at the next step if GMRES needed more
-    than ``opts.budget(n_q)[1]`` iterations.
+    than ``opts.refresh_iter`` iterations.
     """
     if ws.base is None:
         return None
@@ -488,19 +475,18 @@ def _gmres_step(
     # Newton residual, so the relative tolerance is a forcing term.
     rhs = np.concatenate([lin.b - lin.Jalpha @ it.alpha, lin.h / r_bar])
     rtol = max(min(opts.forcing, it.rho**2), 1e-14)  # last steps near round-off
-    max_iter, refresh_iter = opts.budget(n)
     sol = gmres(
         lambda z: _apply_k(ops, lin, r_bar, z),
         lambda z: _apply_p(bp, z),
         rhs,
         rtol,
-        max_iter,
+        opts.max_iter,
     )
     ws.gmres_iterations += sol.iterations
     if not sol.converged:
         return None
     if refresh_after:
-        ws.refresh = sol.iterations > refresh_iter
+        ws.refresh = sol.iterations > opts.refresh_iter
     dq, alpha_new = sol.z[:n], it.alpha + sol.z[n:]
     step = lin.s + (lin.T @ dq).reshape(-1, 3)
     return Step(step, alpha_new, ws.base.factor, True)
