@@ -11,7 +11,7 @@ from __future__ import annotations
 import contextlib
 import os
 import warnings
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -79,7 +79,7 @@ class Factor(NamedTuple):
 
 
 def factor_jacobian(
-    J: FloatArray,
+    J: npt.NDArray[np.floating[Any]],
     keys: npt.NDArray[np.int64],
     threads: int | None = None,
     *,
@@ -101,7 +101,7 @@ def factor_jacobian(
     if J.shape[0] == 0:
         return Factor(keys, (np.zeros((0, 0)), np.zeros(0, dtype=np.int32)))
     if single:
-        J = J.astype(np.float32)
+        J = np.asarray(J, dtype=np.float32)
     n_threads = lu_threads(threads) if J.shape[0] >= LU_THREADED_MIN else 1
     with warnings.catch_warnings():
         warnings.simplefilter("error", sla.LinAlgWarning)

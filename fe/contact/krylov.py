@@ -122,6 +122,8 @@ class Workspace:
         W_block: ``W`` on those DOFs; kept across increments while ``W``'s fingerprint
             ``w_sum`` is unchanged and the block holds the closed points without too
             much slack (``BLOCK_SLACK``).
+        W_single: ``W_block`` (or ``W``) in float32, made on first use: float32 bases
+            are formed from it (half the memory traffic of forming them in float64).
         w_sum: Fingerprint of ``W`` (``Problem.w_sum``) that ``W_block`` was taken from.
         gmres_iterations: GMRES iterations done (a counter for reports).
     """
@@ -130,6 +132,7 @@ class Workspace:
     refresh: bool = False
     block: IntArray | None = None
     W_block: FloatArray | None = field(default=None, repr=False)
+    W_single: npt.NDArray[np.float32] | None = field(default=None, repr=False)
     w_sum: float = float("nan")
     gmres_iterations: int = 0
 
@@ -160,7 +163,7 @@ def workspace_for(W: FloatArray, w_sum: float = float("nan")) -> Workspace:
             ws = Workspace()
             _WORKSPACES[key] = (weakref.ref(W, lambda _r: _WORKSPACES.pop(key, None)), ws)
     if ws.w_sum != w_sum:  # W changed in place since the last call (NaN: unknown)
-        ws.block, ws.W_block = None, None
+        ws.block, ws.W_block, ws.W_single = None, None, None
     ws.w_sum = w_sum
     return ws
 
@@ -182,9 +185,11 @@ def _ensure_block(prob: Problem, closed: IntArray, ws: Workspace) -> IntArray:
     if block is None or not _block_fits(block, closed, m):
         if len(closed) > 0.8 * m:  # gathering would copy nearly all of W
             block, ws.W_block = np.arange(m, dtype=np.int64), None  # None: W itself
+            ws.W_single = None
         else:
             dofs = (3 * closed[:, None] + np.arange(3)).ravel()
             block, ws.W_block = closed, gather_block(prob.W, dofs)
+            ws.W_single = None
         ws.block = block
     return block
 
@@ -430,8 +435,10 @@ def krylov_step(
         if step is not None:
             return step
     if n >= opts.single_min:
+        if ws.W_single is None:
+            ws.W_single = ops.W_b.astype(np.float32)
         single = factor_jacobian(
-            form_jacobian(ops.W_b, ops.block, lin), lin.keys, threads, single=True
+            form_jacobian(ws.W_single, ops.block, lin), lin.keys, threads, single=True
         )
         if single is not None:
             # A float32 base is a preconditioner only: the step comes from GMRES on the

@@ -7,7 +7,7 @@ active-set linear algebra. Notation and conventions are those of :mod:`fe.contac
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -375,8 +375,12 @@ def linearise(
 
 
 def form_jacobian(
-    W_block: FloatArray, block: npt.NDArray[np.int64], lin: Linear, *, symmetric: bool = True
-) -> FloatArray:
+    W_block: npt.NDArray[np.floating[Any]],
+    block: npt.NDArray[np.int64],
+    lin: Linear,
+    *,
+    symmetric: bool = True,
+) -> npt.NDArray[np.floating[Any]]:
     """Form ``J = R W T + diag(d)`` densely, shape (n_q, n_q), C-ordered.
 
     For symmetric ``W``, ``W T = (Tᵀ W)ᵀ``: the columns of ``T`` become combinations of
@@ -387,7 +391,8 @@ def form_jacobian(
     Args:
         W_block: ``W`` restricted to the DOFs of the points ``block`` (rows and columns
             node-major in ``block`` order), shape (3 len(block), 3 len(block)) [mm/N];
-            ``W`` itself when ``block`` is every point.
+            ``W`` itself when ``block`` is every point. float64, or float32 for a J that
+            is only factorised in float32 (J then has that dtype).
         block: Sorted point indices, shape (n_b,), int64; a superset of ``lin.closed``.
         lin: The reduced system.
         symmetric: Whether ``W`` is symmetric.
@@ -399,16 +404,17 @@ def form_jacobian(
     full = len(block) * 3 == lin.T.shape[0]
     T_b = lin.T if full else lin.T[(3 * block[:, None] + np.arange(3)).ravel(), :]
     cols = (3 * np.searchsorted(block, lin.closed)[:, None] + np.arange(3)).ravel()
+    dtype = W_block.dtype  # float32 for a preconditioner's base, else float64
     if symmetric:
-        t_rows = sp.csr_array(T_b.T)  # (n_q, 3 n_b)
-        WT = np.empty((len(cols), n_q))  # W T on the closed DOFs, (3c, n_q), C-ordered
+        t_rows = sp.csr_array(T_b.T, dtype=dtype)  # (n_q, 3 n_b)
+        WT = np.empty((len(cols), n_q), dtype=dtype)  # W T on the closed DOFs, (3c, n_q)
         for i in range(0, n_q, _CHUNK):
             rows = t_rows[i : i + _CHUNK] @ W_block  # (chunk, 3 n_b): rows of (W T)ᵀ
             WT[:, i : i + _CHUNK] = (rows if len(cols) == rows.shape[1] else rows[:, cols]).T
     else:
         WT = np.ascontiguousarray((T_b.T @ W_block[cols].T).T)  # (3c, n_q)
     dofs = (3 * lin.closed[:, None] + np.arange(3)).ravel()
-    J: FloatArray = lin.R[:, dofs] @ WT  # (n_q, n_q)
+    J: npt.NDArray[np.floating[Any]] = lin.R[:, dofs].astype(dtype) @ WT  # (n_q, n_q)
     J[np.diag_indices_from(J)] += lin.d
     return J
 

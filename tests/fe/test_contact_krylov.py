@@ -175,6 +175,10 @@ def test_form_jacobian_by_row_gathers_equals_r_w_t(block_kind, symmetric, monkey
     dofs = (3 * block[:, None] + np.arange(3)).ravel()
     J = contact_newton.form_jacobian(W[np.ix_(dofs, dofs)], block, lin, symmetric=symmetric)
     np.testing.assert_allclose(J, J_ref, rtol=0, atol=1e-13 * np.abs(J_ref).max())
+    if symmetric:  # a float32 block gives J in float32, to single precision
+        J32 = contact_newton.form_jacobian(W[np.ix_(dofs, dofs)].astype(np.float32), block, lin)
+        assert J32.dtype == np.float32
+        np.testing.assert_allclose(J32, J_ref, rtol=0, atol=1e-6 * np.abs(J_ref).max())
     assert J.flags.c_contiguous
 
 
