@@ -58,7 +58,7 @@ def case(level: int, clearance: float, threads: int = 1) -> dict[str, object]:
         "floor_s": floor,
         "cycle/floor": (floor + t["contact"]) / floor,
         "iterations": sum(i.iterations for i in res.increments),
-        "eta": m["eta"],
+        "eta": f"{m['eta']:.10g}",
         "energy_err": m["energy_balance_rel_err"],
     }
 
