@@ -15,7 +15,15 @@ import numpy.typing as npt
 
 from fe.contact.krylov import Workspace, krylov_step
 from fe.contact.law import ContactStatus
-from fe.contact.newton import Factor, Iterate, Problem, Step, evaluate, newton_step
+from fe.contact.newton import (
+    Factor,
+    Iterate,
+    Problem,
+    Step,
+    evaluate,
+    newton_step,
+    sparse_product,
+)
 from fe.contact.state import ContactSettings
 
 FloatArray = npt.NDArray[np.float64]
@@ -38,7 +46,7 @@ def _line_search(
     ``ref`` (>= ``it.merit``, e.g. the largest of the last few merits) the decrease is
     measured from ``ref`` instead (a nonmonotone search); None keeps it monotone.
     """
-    W_dp = (prob.W @ step.dp.ravel()).reshape(-1, 3)
+    W_dp = sparse_product(prob.W, step.dp, prob.symmetric).reshape(-1, 3)  # rows of dp ≠ 0
     tau = 1.0
     while tau >= settings.min_step:
         alpha = it.alpha + tau * (step.alpha_new - it.alpha)
