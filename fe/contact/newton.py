@@ -130,7 +130,7 @@ def evaluate(
         The evaluated iterate.
     """
     if Wp is None:
-        Wp = (prob.W @ p.ravel()).reshape(-1, 3)
+        Wp = sparse_product(prob.W, p, prob.symmetric).reshape(-1, 3)
     Ga = (prob.G @ alpha).reshape(-1, 3)
     w = Wp + Ga + prob.w_free
     g = w.copy()

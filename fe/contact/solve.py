@@ -162,7 +162,7 @@ def newton(
             partial=partial,
         )
     if n_iter:  # W p was updated along the steps: report w with an exact product
-        Wp = (prob.W @ it.p.ravel()).reshape(-1, 3)
+        Wp = sparse_product(prob.W, it.p, prob.symmetric).reshape(-1, 3)
         it = it._replace(w=Wp + (prob.G @ it.alpha).reshape(-1, 3) + prob.w_free, Wp=Wp)
     return Solved(
         it,
