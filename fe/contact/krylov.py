@@ -29,7 +29,7 @@ from __future__ import annotations
 import threading
 import weakref
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -137,6 +137,9 @@ class Workspace:
     gmres_iterations: int = 0
 
 
+SINGLE_OPERATOR_RTOL = 1e-4
+"""GMRES solves with a relative tolerance of at least this use the float32 ``W`` block."""
+
 BLOCK_SLACK = 1.25
 """A kept ``W`` block may hold at most this many times the closed points (each GMRES
 iteration costs ``(3 n_b)²``; regathering costs a pass over the rows of the block)."""
@@ -172,7 +175,7 @@ class _Operators(NamedTuple):
     """``J`` restricted to the closed points' DOFs: ``J x = R_b (W_b (T_b x)) + d x``."""
 
     block: IntArray
-    W_b: FloatArray
+    W_b: npt.NDArray[np.floating[Any]]
     R_b: sp.csr_array
     T_b: sp.csr_array
     d: FloatArray
@@ -232,8 +235,10 @@ def _block_fits(block: IntArray, closed: IntArray, m: int) -> bool:
 
 
 def _apply(ops: _Operators, X: FloatArray) -> FloatArray:
-    """``J X`` for X of shape (n_q,) or (n_q, p)."""
-    out: FloatArray = ops.R_b @ (ops.W_b @ (ops.T_b @ X))
+    """``J X`` for X of shape (n_q,) or (n_q, p) (float32 products if ``W_b`` is float32)."""
+    y = ops.T_b @ X
+    Wy = np.asarray(ops.W_b @ y.astype(ops.W_b.dtype, copy=False), dtype=np.float64)
+    out: FloatArray = ops.R_b @ Wy
     return out + (ops.d * X.T).T
 
 
@@ -482,8 +487,13 @@ def _gmres_step(
     # Newton residual, so the relative tolerance is a forcing term.
     rhs = np.concatenate([lin.b - lin.Jalpha @ it.alpha, lin.h / r_bar])
     rtol = max(min(opts.forcing, it.rho**2), 1e-14)  # last steps near round-off
+    # Loose solves (far from the solution) take W's products in float32: half the memory
+    # traffic, an operator error ~1e-7 far below the forcing term.
+    op = ops
+    if rtol >= SINGLE_OPERATOR_RTOL and ws.W_single is not None:
+        op = ops._replace(W_b=ws.W_single)
     sol = gmres(
-        lambda z: _apply_k(ops, lin, r_bar, z),
+        lambda z: _apply_k(op, lin, r_bar, z),
         lambda z: _apply_p(bp, z),
         rhs,
         rtol,

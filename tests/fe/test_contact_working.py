@@ -242,3 +242,27 @@ def test_a_sub_solve_out_of_iterations_falls_back_to_the_whole_problem(monkeypat
     np.testing.assert_allclose(ws.state.p, full.state.p, atol=1e-9 * np.max(np.abs(full.state.p)))
     np.testing.assert_array_equal(ws.state.status, full.state.status)
     assert ws.iterations >= 3
+
+
+def test_loose_gmres_solves_in_float32_stay_within_their_tolerance():
+    """Far from the solution (rtol >= 1e-4) GMRES takes W in float32: the step is still
+    the LU step to about the forcing term, and near it (tight rtol) to 1e-10."""
+    W = random_W(25, 7)
+    prob, it, r = iterate(W, 9, k=3)
+    assert it.rho**2 >= contact_krylov.SINGLE_OPERATOR_RTOL  # a loose solve
+    opts = KrylovOptions(single_min=1)
+    ws = contact_krylov.Workspace()
+    first = contact_krylov.krylov_step(prob, it, r, 0.0, ws, opts)  # float32 base and block
+    assert first is not None
+    assert ws.W_single is not None
+    step = contact_krylov.krylov_step(prob, it, r, 0.0, ws, opts)
+    ref = contact_newton.newton_step(prob, it, r, 0.0)
+    assert step is not None
+    assert ref is not None
+    scale = np.max(np.abs(ref.dp))
+    np.testing.assert_allclose(step.dp, ref.dp, atol=1e-2 * scale)
+    tight = contact_krylov.krylov_step(
+        prob, it, r, 0.0, ws, KrylovOptions(single_min=1, forcing=1e-13)
+    )
+    assert tight is not None
+    np.testing.assert_allclose(tight.dp, ref.dp, atol=1e-10 * scale)
