@@ -10,6 +10,8 @@ This sub-package is the contact algebra only: it imports nothing else from ``fe`
   kept, updated LU;
 * :mod:`fe.contact.globalise` — the Newton loop: line search, rescues;
 * :mod:`fe.contact.proximal` — the fallback where no Newton step exists (singular ``W``);
+* :mod:`fe.contact.working` — open-point elimination: the increment on the points that
+  may close, checked on all (``ContactSettings.working_set``, opt-in);
 * :mod:`fe.contact.solve` — :func:`solve_increment`, which runs them.
 * :mod:`fe.contact.measure` — Siconos' common error measure, to score a solution.
 
@@ -44,6 +46,7 @@ slipping point's tangential force along the slip direction is eliminated
 complement solved by least squares with ``rcond``, which gives the minimum-norm ``α``).
 While the unknown layout is unchanged and the iteration converges fast, the last LU
 factors are reused (chord steps: exact residual, stale matrix; see ``chord_rate``).
+From ``KrylovOptions.single_min`` unknowns the kept LU (a preconditioner only) is float32.
 Friction ``μ`` is one coefficient or one per point (``ContactSettings.mu``).
 
 Globalisation: Armijo backtracking on the merit ``φ = ½|C/r|² + ½|(Gᵀp - e)/r̄|²``.
