@@ -269,3 +269,15 @@ def test_full_and_hertz_cycles_agree(structure, rig, fp):
         full.increments[-1].force_n, rel=1e-3
     )
     assert max(fc.outer_iterations) <= 20
+
+
+@pytest.mark.slow
+def test_full_cycle_without_friction_has_no_friction_work(structure, rig):
+    """μ = 0: the meshed balls' patches do no friction work at any increment."""
+    from fe.bearing.full_cycle import run_full_cycle
+    from fe.hinge.protocol import CycleSettings
+
+    fc = run_full_cycle(structure, CycleSettings(amplitude_n=400.0, mu=0.0), 100.0,
+                        grid=MESH_LEVELS[0])  # fmt: skip
+    assert all(i.friction_work == 0.0 for i in fc.cycle.result.increments)
+    assert all(i.n_stick == 0 for i in fc.cycle.result.increments)  # frictionless: all slip
