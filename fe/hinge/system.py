@@ -78,8 +78,10 @@ RECOVER_BLOCK = 32
 LOW_MEMORY_DOF = 400_000
 """Above this many DOF, ``build_system`` holds one part's sparse factor at a time.
 
-At refinement 2 (1.07 M DOF) the lug (449k DOF) and pin (615k DOF) factors together with
-the dense contact operators exceeded 24 GB; one at a time they fit. The price is a
+At refinement 2 with the pin's former O-grid (1.07 M DOF) the lug (449k DOF) and pin
+(615k DOF) factors together with the dense contact operators exceeded 24 GB; one at a time
+they fit. With the pin's band (``MeshSettings.pin_band_sizes``) level 2 has 0.73 M DOF, the
+pin 0.28 M. The price is a
 refactorisation per displacement recovery, so recover many states at once
 (``displacements``)."""
 
