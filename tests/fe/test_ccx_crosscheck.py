@@ -140,8 +140,9 @@ def test_loop_matches_calculix(ccx, tmp_path, clearance_mm, increments_per_stage
     result, f, d, stage = ours(tmp_path, toml)
     capsys.readouterr()
     mine = loop_figures(f, d, stage, AMPLITUDE_N, loop_stages=(1, 2))
-    assert mine.disp_at_plus_mm == pytest.approx(result["disp_at_peak_mm"], rel=1e-9)
-    assert mine.area_nmm == pytest.approx(result["W_cycle_Nmm"], rel=1e-6)
+    # loop.csv carries 8 significant digits; the shoelace sum cancels ~25-fold over 160 points
+    assert mine.disp_at_plus_mm == pytest.approx(result["disp_at_peak_mm"], rel=1e-7)
+    assert mine.area_nmm == pytest.approx(result["W_cycle_Nmm"], rel=1e-4)
     n_elem, loop = theirs_mortar(tmp_path, toml)
     assert n_elem == result["n_hex"]  # the same mesh
     assert loop.time[-1] == pytest.approx(3.0)  # ccx completed the cycle
