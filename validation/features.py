@@ -56,7 +56,7 @@ class FeatureSettings:
             mesh against a finer one; at Δr = 0, η is 0.0146 / 0.0147 / 0.0149 on the
             coarse / default level-0 / level-1 meshes, benchmarks/bench_cycle.py).
         eta_floor: Absolute η resolution added to σ_W as ``eta_floor · π F_max δ_max``
-            (default 0.001: with Δr = 0.1 mm η at 400 N is 0.00126 / 0.00111 / 0.00102 at
+            (default 0.001: with Δr = 0.1 mm η at 400 N is 0.00126 / 0.00114 / 0.00103 at
             levels 0 / 1 / 2, a discretisation error of ~0.0003 that the floor covers with
             room for the increment size).
         eta_rel_sigma: Relative uncertainty of a stated η (η-only tables carry none).
