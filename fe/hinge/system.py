@@ -163,8 +163,7 @@ class HingeSystem:
 
         The condensation needs none (Schur complements, each released after use), so no
         sparse factor is alive while condensing: at refinement 2 with the pin's former O-grid
-        (1.07 M DOF) holding both
-        factors during the Schur complements exceeded 24 GB.
+        (1.07 M DOF) holding both factors during the Schur complements exceeded 24 GB.
         """
         if name not in self._factors:
             t0 = time.perf_counter()
