@@ -149,6 +149,7 @@ def test_bearing_cycle_with_full_balls_writes_the_same_result(tmp_path, capsys, 
     from fe.bearing import ball_rig
 
     monkeypatch.setattr(ball_rig, "DEFAULT_RIG_LEVEL", 0)
+    monkeypatch.setattr(ball_rig, "_MEMO", {})  # not a rig another test kept in memory
     monkeypatch.setenv("HINGELAB_CACHE_DIR", str(tmp_path / "cache"))
     argv = ["cycle", "--hinge", "bearing", "--ball-model", "full", "--preload", "100"]
     argv += ["--size", "4", "--contact-size", "0.8", "--increments", "10", "--frames", "20"]
