@@ -59,7 +59,9 @@ class BallModel(Enum):
     HERTZ = "hertz"
     """Each ball a Hertz spring between its two raceway patches, free to roll; rings meshed."""
     FULL = "full"
-    """Every ball meshed, contact resolved on its surface (not implemented in the cycle yet)."""
+    """Every ball a meshed, frictional contact body: one meshed ball with its raceway windows,
+    condensed once and reused for all balls (``fe.bearing.full_cycle``; the structure is meshed
+    without balls, as for ``HERTZ``)."""
 
 
 class Interfaces(Enum):
@@ -68,7 +70,7 @@ class Interfaces(Enum):
     BONDED = "bonded"
     """Tied (the epoxy of the design)."""
     CONTACT = "contact"
-    """Frictional contacts at zero clearance (the paper's ABAQUS model; not implemented yet)."""
+    """Frictional contacts at zero clearance (the paper's ABAQUS model; ``fe.bearing.fits``)."""
 
 
 class Arrangement(Enum):

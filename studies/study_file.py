@@ -222,10 +222,9 @@ def _model(doc: dict[str, Any], study: dict[str, Any], path: Path) -> Any:
         if preset not in MESH_PRESETS:
             raise _err(path, "mesh", f"preset must be one of {list(MESH_PRESETS)}, got {preset!r}")
         if bearing:
-            from cad.bearing import BallModel
-
-            balls = hinge.ball_model is BallModel.FULL
-            mesh = MeshSettings.for_hinge("bearing", balls=balls)
+            # both ball models run on the structure meshed without balls (``full`` brings
+            # its own meshed ball, fe.bearing.ball_rig)
+            mesh = MeshSettings.for_hinge("bearing", balls=False)
             if preset == "coarse":
                 mesh = dataclasses.replace(
                     mesh, size_mm=4.0, contact_size_mm=0.8, part_sizes_mm=(("ring", 1.2),)

@@ -230,6 +230,16 @@ def test_a_bearing_study_varies_preload_and_amplitude(tmp_path):
     coarse = read_study(_bearing(tmp_path, BEARING + '[mesh]\npreset = "coarse"\n'))
     assert (coarse.spec.mesh.size_mm, coarse.spec.mesh.contact_size_mm) == (4.0, 0.8)
     assert coarse.spec.mesh.part_sizes_mm == (("ring", 1.2),)
+    # full balls bring their own meshed ball (fe.bearing.ball_rig): the structure is meshed
+    # without balls, as for hertz
+    preset = '[mesh]\npreset = "default"\n'
+    hertz = read_study(_bearing(tmp_path, BEARING + preset)).spec.mesh
+    path = _bearing(tmp_path, BEARING + preset)
+    model = tmp_path / "MODEL_bearing.toml"
+    model.write_text(model.read_text().replace('ball_model = "HERTZ"', 'ball_model = "FULL"'))
+    full = read_study(path)
+    assert full.spec.hinge.ball_model.value == "full"
+    assert full.spec.mesh == hertz
 
 
 @pytest.mark.parametrize(
