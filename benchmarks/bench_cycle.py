@@ -9,9 +9,10 @@ comparison of the contact phase (1 vs 2 threads) on level 0, run in the same pro
 
 Run: .venv/bin/python benchmarks/bench_cycle.py [max_level] [clearance_mm]
 
-Recorded runs: levels 0–2 at Δr = 0.1 mm, bench_cycle_levels_0-2_dr0.1.txt (level 2:
-1.07 M DOF, 29 min, 20.7 GB peak; zero clearance at level 2 needs a 36 000² dense
-operator); levels 0–1 at Δr = 0 and 0.1 mm, bench_cycle_levels_0-1.txt.
+Recorded runs: levels 0–2 at Δr = 0.1 mm, bench_cycle_levels_0-2_dr0.1.txt (level 2 before
+the pin's fine band: 1.07 M DOF, 29 min, 20.7 GB peak; with it 0.73 M DOF, 12 min, 13.3 GB,
+bench_cycle_pin_band.txt; zero clearance at level 2 needs a 36 000² dense operator); levels
+0–1 at Δr = 0 and 0.1 mm, bench_cycle_levels_0-1.txt.
 """
 
 from __future__ import annotations

@@ -27,9 +27,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--mu", type=float, default=None, metavar="X", help="friction coefficient")
     p.add_argument(
         "--contact",
-        choices=("node", "surface"),
+        choices=("node", "surface", "mortar"),
         default="node",
-        help="CalculiX contact: node-to-surface (default) or surface-to-surface",
+        help="CalculiX contact: node-to-surface (default), surface-to-surface, or mortar with "
+        "hard contact and exact stick (our solver's counterpart; no ADJUST, so mesh pin and "
+        "holes conformingly: docs/calculix_crosscheck.md)",
     )
     p.add_argument(
         "--penalty",
@@ -85,19 +87,23 @@ def run(args: argparse.Namespace) -> int:
         }.items()
         if v is not None
     }
-    settings = dataclasses.replace(
-        DeckSettings(
-            amplitude_n=spec.cycle.amplitude_n,
-            mu=spec.cycle.mu,
-            clearance_mm=clearance,
-            increments_per_stage=spec.cycle.increments_per_stage,
-            contact=ContactType.NODE_TO_SURFACE
+    common: dict[str, object] = {
+        "amplitude_n": spec.cycle.amplitude_n,
+        "mu": spec.cycle.mu,
+        "clearance_mm": clearance,
+        "increments_per_stage": spec.cycle.increments_per_stage,
+        "load_factors": CYCLE[: args.steps],
+    }
+    if args.contact == "mortar":
+        base = DeckSettings.exact_mortar(**common)
+    else:
+        kind = (
+            ContactType.NODE_TO_SURFACE
             if args.contact == "node"
-            else ContactType.SURFACE_TO_SURFACE,
-            load_factors=CYCLE[: args.steps],
-        ),
-        **overrides,
-    )
+            else ContactType.SURFACE_TO_SURFACE
+        )
+        base = DeckSettings(contact=kind, **common)  # type: ignore[arg-type]
+    settings = dataclasses.replace(base, **overrides)
     mesh, _ = mesh_hinge(model, spec.mesh)
     title = f"hingelab {spec.kind} hinge from {args.model.name}"
     path = write_deck(mesh, model.faces, settings, args.out, title=title)

@@ -54,6 +54,22 @@ def test_model_file_values_are_the_defaults(tmp_path, capsys, model_file):
     assert "*FRICTION\n0.15, " in text
 
 
+def test_mortar_deck_is_the_exact_counterpart(tmp_path, capsys, model_file):
+    """``--contact mortar`` writes DeckSettings.exact_mortar: mortar pairs, hard contact
+    (no *SURFACE BEHAVIOR), no ADJUST; the node default keeps its penalty cards."""
+    out = tmp_path / "mortar.inp"
+    argv = ["export-inp", str(model_file), "--out", str(out), "--json", "--contact", "mortar"]
+    assert main(argv) == 0
+    assert json.loads(capsys.readouterr().out)["contact"] == "MORTAR"
+    text = out.read_text()
+    assert text.count("TYPE=MORTAR") == 3
+    assert "\n*SURFACE BEHAVIOR" not in text
+    assert "ADJUST=" not in text
+    node = tmp_path / "node.inp"
+    assert main(["export-inp", str(model_file), "--out", str(node)]) == 0
+    assert "\n*SURFACE BEHAVIOR" in node.read_text()
+
+
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [
