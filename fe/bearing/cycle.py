@@ -358,7 +358,9 @@ def run_bearing_cycle(
     state = pre.balls
 
     def partial() -> CycleResult:
-        return _result(settings, incs, states, pre, {"preload": t_pre})
+        return bearing_result(
+            settings, incs, states, pre.balls.as_contact_state(), {"preload": t_pre}
+        )
 
     t1 = time.perf_counter()
     f_prev = 0.0
@@ -390,7 +392,13 @@ def run_bearing_cycle(
             if progress is not None:
                 progress(len(incs), total)
     return BearingCycle(
-        _result(settings, incs, states, pre, {"preload": t_pre, "cycle": time.perf_counter() - t1}),
+        bearing_result(
+            settings,
+            incs,
+            states,
+            pre.balls.as_contact_state(),
+            {"preload": t_pre, "cycle": time.perf_counter() - t1},
+        ),
         pre,
     )
 
@@ -472,13 +480,14 @@ def _advance(
     )
 
 
-def _result(
+def bearing_result(
     settings: CycleSettings,
     incs: list[Increment],
     states: list[ContactState],
-    pre: PreloadResult,
+    preload: ContactState,
     timings: dict[str, float],
 ) -> CycleResult:
+    """The cycle result of a bearing hinge (no clearance, no free play, one configuration)."""
     return CycleResult(
         settings=settings,
         clearance_mm=0.0,
@@ -487,5 +496,5 @@ def _result(
         states=tuple(states),
         configs={},
         timings_s=timings,
-        preload_state=pre.balls.as_contact_state(),
+        preload_state=preload,
     )
