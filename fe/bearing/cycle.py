@@ -145,6 +145,34 @@ def block_diag(H: FloatArray) -> FloatArray:
     return out
 
 
+def newton_step(
+    W: FloatArray, GU: FloatArray, H: FloatArray, r1: FloatArray, r2: FloatArray
+) -> FloatArray:
+    """The Newton step of the ball equations ``v + W f(v) − G α = 0``, ``G_Uᵀ f(v) = e_U``.
+
+    Args:
+        W: Ball compliance, shape (2 n_b, 2 n_b) [mm/N].
+        GU: Columns of the unknown load parameters, shape (2 n_b, k).
+        H: Ball tangents ∂f/∂v, shape (n_b, 2, 2) [N/mm].
+        r1: Compatibility residual, shape (2 n_b,) [mm].
+        r2: Equilibrium residual, shape (k,) [N].
+
+    Returns:
+        (Δv, Δα_U), shape (2 n_b + k,); least squares where the Jacobian is singular.
+    """
+    n2, k = W.shape[0], GU.shape[1]
+    Hb = block_diag(H)
+    J = np.zeros((n2 + k, n2 + k))
+    J[:n2, :n2] = np.eye(n2) + W @ Hb
+    J[:n2, n2:] = -GU
+    J[n2:, :n2] = GU.T @ Hb
+    rhs = -np.concatenate([r1, r2])
+    try:
+        return np.asarray(np.linalg.solve(J, rhs))
+    except np.linalg.LinAlgError:
+        return np.asarray(np.linalg.lstsq(J, rhs, rcond=None)[0])
+
+
 def solve_state(
     system: BearingSystem,
     v0: FloatArray,
@@ -175,7 +203,6 @@ def solve_state(
     n = system.n_balls
     W, G = system.W, system.G
     GU = G[:, list(unknown)]
-    k = len(unknown)
     d0, k_n = system.balls.d0, system.balls.k_n
     q_ref = max(ref_load_n, 1.0) / n
     ref_mm = (q_ref / k_n) ** (2.0 / 3.0)
@@ -208,16 +235,7 @@ def solve_state(
         ):
             break
         _, _, _, H = ball_law(d0, v.reshape(n, 2), k_n, reg)
-        Hb = block_diag(H)
-        J = np.zeros((2 * n + k, 2 * n + k))
-        J[: 2 * n, : 2 * n] = np.eye(2 * n) + W @ Hb
-        J[: 2 * n, 2 * n :] = -GU
-        J[2 * n :, : 2 * n] = GU.T @ Hb
-        rhs = -np.concatenate([r1, r2])
-        try:
-            step = np.linalg.solve(J, rhs)
-        except np.linalg.LinAlgError:
-            step = np.linalg.lstsq(J, rhs, rcond=None)[0]
+        step = newton_step(W, GU, H, r1, r2)
         m0, t = merit(r1, r2), 1.0
         for _ in range(40):
             v_try = v + t * step[: 2 * n]

@@ -50,7 +50,7 @@ from fe.bearing.cycle import (
     PreloadResult,
     ball_law,
     bearing_result,
-    block_diag,
+    newton_step,
     preload_step,
     with_zero_crossing,
 )
@@ -180,7 +180,6 @@ def solve_full_state(
     n = system.n_balls
     W, G = system.W, system.G
     GU = G[:, list(unknown)]
-    k = len(unknown)
     d0, k_n = system.balls.d0, system.balls.k_n
     q_ref = max(ref_load_n, 1.0) / n
     ref_mm = (q_ref / k_n) ** (2.0 / 3.0)
@@ -228,16 +227,7 @@ def solve_full_state(
         H_reg = ball_law(d0, v.reshape(n, 2), k_n, reg)[3]
         idle = np.trace(H, axis1=1, axis2=2) < np.trace(H_reg, axis1=1, axis2=2)
         H[idle] = H_reg[idle]
-        Hb = block_diag(H)
-        J = np.zeros((2 * n + k, 2 * n + k))
-        J[: 2 * n, : 2 * n] = np.eye(2 * n) + W @ Hb
-        J[: 2 * n, 2 * n :] = -GU
-        J[2 * n :, : 2 * n] = GU.T @ Hb
-        rhs = -np.concatenate([r1, r2])
-        try:
-            step = np.linalg.solve(J, rhs)
-        except np.linalg.LinAlgError:
-            step = np.linalg.lstsq(J, rhs, rcond=None)[0]
+        step = newton_step(W, GU, H, r1, r2)
         m0, t = merit(r1, r2), 1.0
         starts = tuple(s.state for s in steps)
         for _ in range(30):
