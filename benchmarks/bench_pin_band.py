@@ -17,6 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import print_table, run_isolated
+from bench_cycle import case as cycle_case
 
 COLUMNS = [
     "level",
@@ -40,44 +41,9 @@ COLUMNS = [
 
 def case(level: int, clearance: float, band: float) -> dict[str, object]:
     """Run the default 400 N cycle at one refinement, clearance and band depth."""
-    import numpy as np
-
-    from cad.general import GeneralHingeParams
-    from fe.hinge.cycle import CycleSettings
-    from fe.service import DesignPoint, ModelService, ModelSpec
-    from mesh.settings import MeshSettings
-
-    spec = ModelSpec(
-        "general",
-        GeneralHingeParams(),
-        MeshSettings(refinement=level, pin_band_sizes=band),
-        CycleSettings(amplitude_n=400.0, blas_threads=1),
-    )
-    service = ModelService()
-    prepared = service.prepare(spec, clearance)
-    system = prepared.system
-    mesh = prepared.meshed.mesh
-    pin = mesh.part_names.index("pin")
-    pin_nodes = len(np.unique(mesh.hexes[mesh.elem_part == pin]))
-    res = service.run_point(spec, DesignPoint(400.0, clearance))
-    m = res.metrics()
-    t = {**system.timings_s, **res.timings_s}
-    return {
-        "level": level,
-        "clearance": clearance,
-        "band": band,
-        "n_dof": system.n_dof,
-        "pin_share": pin_nodes / len(mesh.nodes),
-        "points": len(res.configs[1].geo.slave),
-        "assembly_s": t["assembly"],
-        "factor_s": t["factorisation"],
-        "compliance_s": t.get("compliance", 0.0),
-        "condense_s": t["condensation"] - t.get("compliance", 0.0),
-        "contact_s": t["contact"],
-        "iterations": sum(i.iterations for i in res.increments),
-        "eta": f"{m['eta']:.6g}",  # six digits: the band moves η by less than 3 would show
-        "energy_err": m["energy_balance_rel_err"],
-    }
+    row = cycle_case(level, clearance, 1, pin_band_sizes=band)
+    # six digits: the band moves η by less than 3 would show
+    return row | {"clearance": clearance, "band": band, "eta": f"{row['eta_value']:.6g}"}
 
 
 def main(argv: list[str]) -> None:
