@@ -145,6 +145,20 @@ def block_diag(H: FloatArray) -> FloatArray:
     return out
 
 
+def newton_scales(system: BearingSystem, ref_load_n: float) -> tuple[float, float, float]:
+    """Scales of the ball Newton iteration for a state carrying about ``ref_load_n``.
+
+    Returns:
+        (ref_mm: the Hertz approach of a ball at the mean load [mm]; reg: the approach at
+        which an unloaded ball's tangent is taken, ``REG_FRACTION · ref_mm`` [mm]; c: the
+        compliance that weighs equilibrium residuals as displacements in the merit [mm/N]).
+    """
+    q_ref = max(ref_load_n, 1.0) / system.n_balls
+    ref_mm = (q_ref / system.balls.k_n) ** (2.0 / 3.0)
+    c = float(np.mean(np.diag(system.W))) + ref_mm / q_ref
+    return ref_mm, REG_FRACTION * ref_mm, c
+
+
 def newton_step(
     W: FloatArray, GU: FloatArray, H: FloatArray, r1: FloatArray, r2: FloatArray
 ) -> FloatArray:
@@ -204,10 +218,7 @@ def solve_state(
     W, G = system.W, system.G
     GU = G[:, list(unknown)]
     d0, k_n = system.balls.d0, system.balls.k_n
-    q_ref = max(ref_load_n, 1.0) / n
-    ref_mm = (q_ref / k_n) ** (2.0 / 3.0)
-    reg = REG_FRACTION * ref_mm
-    c = float(np.mean(np.diag(W))) + ref_mm / q_ref  # compliance to weigh forces as mm
+    ref_mm, reg, c = newton_scales(system, ref_load_n)
     v = np.array(v0, dtype=float).ravel()
     alpha = np.array(alpha0, dtype=float)
 

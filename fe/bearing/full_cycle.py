@@ -44,12 +44,12 @@ from fe.bearing.cycle import (
     GRIP_X,
     GRIP_Z,
     PRELOAD,
-    REG_FRACTION,
     BallState,
     BearingCycle,
     PreloadResult,
     ball_law,
     bearing_result,
+    newton_scales,
     newton_step,
     preload_step,
     with_zero_crossing,
@@ -181,10 +181,7 @@ def solve_full_state(
     W, G = system.W, system.G
     GU = G[:, list(unknown)]
     d0, k_n = system.balls.d0, system.balls.k_n
-    q_ref = max(ref_load_n, 1.0) / n
-    ref_mm = (q_ref / k_n) ** (2.0 / 3.0)
-    reg = REG_FRACTION * ref_mm
-    c = float(np.mean(np.diag(W))) + ref_mm / q_ref
+    ref_mm, reg, c = newton_scales(system, ref_load_n)
     v = np.array(v0, dtype=float).ravel()
     alpha = np.array(alpha0, dtype=float)
     prev = committed.rigs
