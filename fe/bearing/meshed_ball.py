@@ -220,6 +220,9 @@ class MeshedBallLaw:
         f = R.T @ f_loc
         K = self._tangent(st, prev, mu) if tangent else np.zeros((2, 2))
         p = st.p.ravel()
+        # W p from the converged w = W p + G_ball α + w_free (solve_increment's exact
+        # product), not another pass over the rig's W
+        Wp = (st.w - w_free).ravel() - rig.G_ball @ np.asarray(st.alpha)
         return BallStep(
             force_n=f,
             load_n=float(np.linalg.norm(f)),
@@ -228,7 +231,7 @@ class MeshedBallLaw:
             friction_work=2.0 * float(res.friction_work.sum()),
             normal_work=2.0 * float(res.normal_work.sum()),
             dissipation=2.0 * float(res.dissipation.sum()),
-            energy=float(p @ (rig.W @ p)),  # 2 · ½ pᵀ W p
+            energy=float(p @ Wp),  # 2 · ½ pᵀ W p
             iterations=res.iterations,
             n_closed=res.n_stick + res.n_slip,
             n_slip=res.n_slip,

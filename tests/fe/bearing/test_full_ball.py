@@ -117,6 +117,15 @@ def test_friction_work_of_the_local_law_is_not_negative(rig, params, balls):
     assert any(0 < s.n_slip < s.n_closed for s in steps)
 
 
+def test_step_energy_is_the_rigs_strain_energy(rig, params, balls):
+    """``energy`` (taken from the converged w) is 2 · ½ pᵀ W p of the half model."""
+    steps = _run_path(_law(rig, params, balls, 0.2))
+    for s in steps:
+        p = s.state.p.ravel()
+        assert s.energy == pytest.approx(float(p @ (rig.W @ p)), rel=1e-9, abs=1e-15)
+    assert max(s.energy for s in steps) > 0.0
+
+
 @pytest.mark.parametrize("mu", [0.0, 0.2], ids=["mu0", "mu0.2"])
 def test_tangent_matches_central_differences(rig, params, balls, mu):
     """The active-set tangent is the derivative of the step from the same committed state.
