@@ -189,7 +189,7 @@ def solve_full_state(
     def evaluate(v: FloatArray, starts: tuple[ContactState, ...]) -> list[BallStep]:
         out = []
         for j in range(n):
-            s = law.solve(j, v[2 * j : 2 * j + 2], prev[j], starts[j])
+            s = law.solve(j, v[2 * j : 2 * j + 2], prev[j], starts[j], tangent=False)
             check_converged(s, j)
             out.append(s)
         return out
@@ -217,7 +217,7 @@ def solve_full_state(
                 iteration=max_iter,
                 residual=merit(r1, r2),
             )
-        H = np.array([s.tangent for s in steps])
+        H = np.array([law.tangent_of(j, s, prev[j]) for j, s in enumerate(steps)])
         # Where a ball's tangent is below the regularised Hertz one (unloaded, or touching
         # at a point or two with no stiffness yet), the Hertz tangent shows Newton the
         # ball it is about to load.

@@ -126,6 +126,8 @@ class BallStep:
         energy: Strain energy of the ball and its raceway blocks [N·mm].
         iterations: Contact Newton iterations (0: unloaded, no solve).
         n_closed: Closed points (half model). n_slip: Of which slipping.
+        mu: The friction coefficient the step was solved with (0 if it re-seated
+            frictionless), which its tangent needs.
     """
 
     force_n: FloatArray
@@ -139,6 +141,7 @@ class BallStep:
     iterations: int
     n_closed: int
     n_slip: int
+    mu: float = 0.0
 
 
 @dataclass
@@ -235,7 +238,24 @@ class MeshedBallLaw:
             iterations=res.iterations,
             n_closed=res.n_stick + res.n_slip,
             n_slip=res.n_slip,
+            mu=mu,
         )
+
+    def tangent_of(self, ball: int, step: BallStep, prev: ContactState) -> FloatArray:
+        """``∂f/∂v`` of a step solved with ``tangent=False``, shape (2, 2) [N/mm].
+
+        The same matrix ``solve`` returns with ``tangent=True``: the ball Newton asks for it
+        only for an accepted iterate that is not yet converged, not for line-search trials
+        or the converged state.
+
+        Args:
+            ball: Ball index (selects its map).
+            step: The ball's step.
+            prev: The state the step was taken from.
+        """
+        R = self.maps[ball]
+        K: FloatArray = -(R.T @ self._tangent(step.state, prev, step.mu) @ R)
+        return K
 
     def _contact(
         self, w_free: FloatArray, prev: ContactState, start: ContactState
