@@ -114,14 +114,14 @@ def theirs(tmp_path, toml, *extra, timeout_s=1200.0):
     return loop_from_dat(parse_dat(run.dat), GRIP_REF_SET, ["tang_fixed"])
 
 
-# Measured on this machine (docs/calculix_crosscheck.md works out the causes). ccx
-# completes both cycles with the exact mortar deck on the conforming mesh.
-XFAIL_DR01 = pytest.mark.xfail(
-    raises=AssertionError,
-    reason="ccx completes the cycle (50 increments, 204 iterations) and its peaks agree "
-    "(δ(+Fg) 0.973, δ(−Fg) 0.951 of ours), but after each free-play crossing its mortar "
-    "contact lets the pin penetrate (82 µm beyond touching at −68 N) and removes the "
-    "overlap over the next 3-4 increments, so its loop area is 1320 times ours",
+# Measured on this machine (docs/calculix_crosscheck.md works out the cause). ccx
+# completes both cycles with the exact mortar deck on the conforming mesh; at Δr 0.1 its
+# peaks are checked like Δr 0's, and only its loop area is a known failure.
+AREA_XFAIL_DR01 = (
+    "known: after each free-play crossing ccx's mortar contact lets the pin penetrate "
+    "(82 µm beyond touching at −68 N) and removes the overlap over the next 3-4 "
+    "increments (ccx resolves overlaps increment-wise), an excursion whose area is three "
+    "orders of magnitude larger than the friction loop (1320 times ours measured)"
 )
 
 
@@ -132,7 +132,7 @@ XFAIL_DR01 = pytest.mark.xfail(
         # that shrinks with the increment: at 20 per stage its loop area is 0.80 of ours,
         # at 40 it is 0.953 (ours is converged: 0.0630 N·mm at both). ccx: ~20 minutes.
         pytest.param(0.0, 40, id="dr0"),
-        pytest.param(0.1, 20, marks=XFAIL_DR01, id="dr0.1"),
+        pytest.param(0.1, 20, id="dr0.1"),
     ],
 )
 def test_loop_matches_calculix(ccx, tmp_path, clearance_mm, increments_per_stage, capsys):
@@ -160,6 +160,8 @@ def test_loop_matches_calculix(ccx, tmp_path, clearance_mm, increments_per_stage
     )
     assert other.disp_at_plus_mm == pytest.approx(mine.disp_at_plus_mm, rel=0.05), measured
     assert other.disp_at_minus_mm == pytest.approx(mine.disp_at_minus_mm, rel=0.05), measured
+    if clearance_mm > 0.0 and other.area_nmm != pytest.approx(mine.area_nmm, rel=0.15):
+        pytest.xfail(f"{AREA_XFAIL_DR01}; {measured}")
     assert other.area_nmm == pytest.approx(mine.area_nmm, rel=0.15), measured
 
 
