@@ -59,6 +59,22 @@ class DatBlock:
     rows: FloatArray
 
 
+_FORTRAN_EXP = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+))([+-]\d{3})$")
+"""A Fortran ``E13.6`` number whose exponent needs three digits: ccx writes ``-5.260560-144``
+(the ``E`` dropped to make room), which ``float`` does not read."""
+
+
+def _number(text: str) -> float:
+    """A number of a ``.dat`` row, including Fortran's three-digit exponents without ``E``."""
+    try:
+        return float(text)
+    except ValueError:
+        m = _FORTRAN_EXP.match(text)
+        if m is None:
+            raise
+        return float(f"{m[1]}e{m[2]}")
+
+
 def parse_dat(path: Path) -> list[DatBlock]:
     """Read every output block of a CalculiX ``.dat`` file, in file order.
 
@@ -88,7 +104,7 @@ def parse_dat(path: Path) -> list[DatBlock]:
             head, rows = m, []
         elif line.strip() and head is not None:
             try:
-                rows.append([float(x) for x in line.split()])
+                rows.append([_number(x) for x in line.split()])
             except ValueError as err:
                 raise DataError(f"{path}:{lineno}: expected numbers, got {line.strip()!r}") from err
     close()

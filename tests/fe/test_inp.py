@@ -367,6 +367,21 @@ def test_dat_reader_names_a_bad_line(tmp_path):
         parse_dat(dat)
 
 
+def test_dat_reader_reads_three_digit_exponents(tmp_path):
+    """ccx writes |x| < 1e-99 in Fortran's E13.6 without the ``E`` (seen in a real run)."""
+    dat = tmp_path / "t.dat"
+    dat.write_text(
+        " displacements (vx,vy,vz) for set A and time  0.1E+01\n\n"
+        "       12 -5.260560-144  2.814323-143  1.0E+00\n"
+    )
+    (block,) = parse_dat(dat)
+    assert block.rows.tolist() == [[12.0, -5.260560e-144, 2.814323e-143, 1.0]]
+    bad = tmp_path / "b.dat"
+    bad.write_text(" displacements (vx,vy,vz) for set A and time  0.1E+01\n\n 1 2.0-1x4\n")
+    with pytest.raises(Exception, match=r"b.dat:3: expected numbers"):
+        parse_dat(bad)
+
+
 def test_dat_reader_pairs_increments(tmp_path):
     dat = tmp_path / "a.dat"
     dat.write_text(
