@@ -27,6 +27,11 @@ so a sticking node slips by less than 10⁻¹¹ mm at 10 MPa: stick is exact to 
 """
 
 
+TOUCH_INCREMENT_N = 0.005
+"""``exact_mortar``'s ``touch_increment_n`` with clearance [N]: 0.1 µm of pin travel per
+increment at the 50 N/mm grip spring, below the hinge's loop width (~0.16 µm)."""
+
+
 class ContactType(Enum):
     """CalculiX's contact discretisations (the deck's ``TYPE=``).
 
@@ -82,6 +87,17 @@ class DeckSettings:
             of the increment's). Else all three criteria set to this value, and the
             looser one never used: the loop width of the hinge is about 1 % of its peak
             displacement, so the defaults leave errors of the size being compared.
+        touch_increment_n: With clearance: the largest ``*CLOAD`` increment [N] within
+            ``touch_band_n`` of the force at which, after a reversal, the pin has crossed
+            the free play and touches the other side (grip spring × 2Δr; the hinge carries
+            nothing there). Each reversal step is then written as three steps (before, in,
+            after the band) whose step times still add up to 1. None: uniform increments.
+            ccx detects a new contact once per increment and resolves an overlap over the
+            next increments, so a pin that crosses the 4Δr free play inside one increment
+            runs up to 82 µm into the hole (docs/calculix_crosscheck.md); with 0.005 N
+            increments at the 50 N/mm grip spring it moves 0.1 µm per increment there.
+        touch_band_n: Half width of that band [N] (0.5 N: ±25 µm of pin travel at 50 N/mm,
+            which holds the touch despite the parts' residual deformation).
     """
 
     amplitude_n: float = 400.0
@@ -97,6 +113,8 @@ class DeckSettings:
     grip_spring_n_per_mm: float | None = None
     load_factors: tuple[float, ...] = CYCLE
     field_tolerance: float | None = None
+    touch_increment_n: float | None = None
+    touch_band_n: float = 0.5
 
     def __post_init__(self) -> None:
         if not self.load_factors:
@@ -123,14 +141,29 @@ class DeckSettings:
         check_range("float_spring_n_per_mm", self.float_spring_n_per_mm, 0.0, 1e9)
         if self.grip_spring_n_per_mm is not None:
             check_range("grip_spring_n_per_mm", self.grip_spring_n_per_mm, 0.0, 1e9)
+        check_range("touch_band_n", self.touch_band_n, 0.0, 1e3, lo_open=True)
+        if self.touch_increment_n is not None:
+            check_range("touch_increment_n", self.touch_increment_n, 0.0, 1e3, lo_open=True)
+            if self.clearance_mm == 0.0 or self.grip_spring == 0.0:
+                raise ParameterError(
+                    f"touch_increment_n = {self.touch_increment_n:g} N needs free play and a "
+                    f"grip spring (clearance_mm = {self.clearance_mm:g}, grip spring "
+                    f"{self.grip_spring:g} N/mm): there is no touch to refine"
+                )
+            if self.touch_band_n >= self.grip_spring * 2.0 * self.clearance_mm:
+                raise ParameterError(
+                    f"touch_band_n = {self.touch_band_n:g} N must be below the grip spring's "
+                    f"force at the touch, {self.grip_spring * 2.0 * self.clearance_mm:g} N"
+                )
 
     @classmethod
     def exact_mortar(cls, **overrides: object) -> DeckSettings:
         """Return CalculiX's closest counterpart of our solver, with any field overridden.
 
         Mortar contact, hard normal contact, exact stick, no ``ADJUST`` (a mesh whose pin
-        and hole nodes sit at the same angles starts without overclosure) and tight
-        convergence criteria (1e-4).
+        and hole nodes sit at the same angles starts without overclosure), tight
+        convergence criteria (1e-4) and, with clearance, ``TOUCH_INCREMENT_N`` increments
+        where the pin touches after crossing the free play.
         """
         base: dict[str, object] = {
             "contact": ContactType.MORTAR,
@@ -139,6 +172,9 @@ class DeckSettings:
             "adjust_mm": 0.0,
             "field_tolerance": 1e-4,
         }
+        clearance = overrides.get("clearance_mm", 0.0)
+        if isinstance(clearance, (int, float)) and clearance > 0.0:
+            base["touch_increment_n"] = TOUCH_INCREMENT_N
         return cls(**{**base, **overrides})  # type: ignore[arg-type]
 
     @property

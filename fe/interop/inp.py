@@ -49,6 +49,7 @@ from cad.surfaces import Plane
 from fe.interop.deck_settings import (
     CYCLE,
     EXACT_STICK_SLOPE_MPA_PER_MM,
+    TOUCH_INCREMENT_N,
     ContactType,
     DeckSettings,
 )
@@ -59,6 +60,7 @@ __all__ = [
     "CYCLE",
     "EXACT_STICK_SLOPE_MPA_PER_MM",
     "GRIP_REF_SET",
+    "TOUCH_INCREMENT_N",
     "ContactType",
     "DeckSettings",
     "deck_text",
@@ -386,41 +388,70 @@ def _controls(s: DeckSettings) -> list[str]:
     ]
 
 
+def _segments(
+    s: DeckSettings, k: int, previous: float, target: float
+) -> list[tuple[float, float, float]]:
+    """A stage as ccx steps: (step time, largest increment, load factor at its end) each.
+
+    One step, unless ``s.touch_increment_n`` refines the band around the reversal's touch
+    (three steps whose times add up to 1, so that the total time still counts stages).
+    """
+    n = max(2, s.increments_per_stage // 2) if k == 0 else s.increments_per_stage
+    if s.touch_increment_n is None or k == 0 or target == previous:
+        return [(1.0, 1.0 / n, target)]
+    peak = s.peak_cload_n
+    direction = 1.0 if target > previous else -1.0
+    touch = direction * s.grip_spring * 2.0 * s.clearance_mm / peak  # load factor
+    half = s.touch_band_n / peak
+    ends = [touch - direction * half, touch + direction * half, target]
+    span = target - previous
+    out, start = [], previous
+    for j, end in enumerate(ends):
+        period = (end - start) / span
+        dt = s.touch_increment_n / (abs(span) * peak) if j == 1 else 1.0 / n
+        out.append((period, min(dt, period), end))
+        start = end
+    return out
+
+
 def _steps(s: DeckSettings, roles: _Roles, sign: float, dof: int) -> list[str]:
     out: list[str] = []
     previous = 0.0
+    number = 0
     for k, target in enumerate(s.load_factors):
-        n = max(2, s.increments_per_stage // 2) if k == 0 else s.increments_per_stage
-        dt = 1.0 / n
-        force = sign * target * s.peak_cload_n
-        out += [
-            "**",
-            f"** ==== Step {k + 1}: grip force {previous * s.amplitude_n:+g} -> "
-            f"{target * s.amplitude_n:+g} N, ramped linearly over step time 1 ====",
-            "** *STATIC: initial increment, step time, smallest increment, largest increment.",
-            "*STEP, INC=10000",
-            "*STATIC",
-            f"{_num(dt)}, 1.0, {_num(dt * 1e-5)}, {_num(dt)}",
-            *_controls(s),
-            "*CLOAD",
-            f"{GRIP_REF_SET}, {dof}, {_num(force)}",
-            "** Per increment to the .dat file: the grip displacement, and the total reaction of",
-            "** the fixed faces (minus the force carried through the hinge).",
-            f"*NODE PRINT, NSET={GRIP_REF_SET}",
-            "U",
-        ]
-        for name in roles.fixed:
-            out += [f"*NODE PRINT, NSET={inp_name(name)}, TOTALS=ONLY", "RF"]
-        out += [
-            "** Fields for a viewer (.frd): displacements, stresses, contact status/stresses.",
-            "*NODE FILE",
-            "U",
-            "*EL FILE",
-            "S",
-            "*CONTACT FILE",
-            "CDIS, CSTR",
-            "*END STEP",
-        ]
+        start = previous
+        for period, dt, end in _segments(s, k, previous, target):
+            number += 1
+            force = sign * end * s.peak_cload_n
+            out += [
+                "**",
+                f"** ==== Step {number}: grip force {start * s.amplitude_n:+g} -> "
+                f"{end * s.amplitude_n:+g} N, ramped linearly over step time {period:.9g} ====",
+                "** *STATIC: initial increment, step time, smallest increment, largest increment.",
+                "*STEP, INC=10000",
+                "*STATIC",
+                f"{_num(dt)}, {_num(period)}, {_num(dt * 1e-5)}, {_num(dt)}",
+                *_controls(s),
+                "*CLOAD",
+                f"{GRIP_REF_SET}, {dof}, {_num(force)}",
+                "** Per increment to the .dat file: the grip displacement, and the total reaction of",
+                "** the fixed faces (minus the force carried through the hinge).",
+                f"*NODE PRINT, NSET={GRIP_REF_SET}",
+                "U",
+            ]
+            for name in roles.fixed:
+                out += [f"*NODE PRINT, NSET={inp_name(name)}, TOTALS=ONLY", "RF"]
+            out += [
+                "** Fields for a viewer (.frd): displacements, stresses, contact status/stresses.",
+                "*NODE FILE",
+                "U",
+                "*EL FILE",
+                "S",
+                "*CONTACT FILE",
+                "CDIS, CSTR",
+                "*END STEP",
+            ]
+            start = end
         previous = target
     return out
 

@@ -31,6 +31,7 @@ from fe.interop.inp import (
     CYCLE,
     EXACT_STICK_SLOPE_MPA_PER_MM,
     GRIP_REF_SET,
+    TOUCH_INCREMENT_N,
     ContactType,
     DeckSettings,
     deck_text,
@@ -410,10 +411,57 @@ def test_exact_mortar_deck_has_no_penalty(hinge):
     frictions = cards_of(cards, "FRICTION")
     assert [float(c.data[0][1]) for c in frictions] == [EXACT_STICK_SLOPE_MPA_PER_MM] * 3
     fields = [c for c in cards_of(cards, "CONTROLS") if c.params["PARAMETERS"] == "FIELD"]
-    assert len(fields) == len(CYCLE)
+    assert len(fields) == len(cards_of(cards, "STEP"))  # every step, touch bands included
     assert all(c.data == [["0.0001", "0.0001", "0.0001"]] for c in fields)
     times = [c for c in cards_of(cards, "CONTROLS") if c.params["PARAMETERS"] != "FIELD"]
     assert all(c.data[0][2] == c.data[0][3] == "50" for c in times)  # never the looser R_p
+
+
+def _stages(cards, settings):
+    """Per step: (step time, largest increment, *CLOAD at its end as a load factor)."""
+    out = []
+    for st, cl in zip(cards_of(cards, "STATIC"), cards_of(cards, "CLOAD"), strict=True):
+        dt0, period, _, dt_max = (float(x) for x in st.data[0])
+        assert dt0 == dt_max
+        out.append((period, dt_max, float(cl.data[0][2]) / settings.peak_cload_n))
+    return out
+
+
+def test_touch_band_splits_each_reversal_into_three_steps(hinge):
+    """With clearance the mortar deck refines the load where the pin touches again."""
+    model, mesh = hinge
+    settings = DeckSettings.exact_mortar(clearance_mm=0.1, amplitude_n=400.0)
+    assert settings.touch_increment_n == TOUCH_INCREMENT_N
+    steps = _stages(parse_cards(deck_text(mesh, model.faces, settings)), settings)
+    assert len(steps) == 1 + 3 * (len(CYCLE) - 1)
+    assert steps[0] == pytest.approx((1.0, 2.0 / settings.increments_per_stage, CYCLE[0]))
+    touch = settings.grip_spring * 2 * settings.clearance_mm  # 10 N: the spring alone
+    assert touch == pytest.approx(10.0)
+    for k in range(1, len(CYCLE)):
+        before, band, after = steps[3 * k - 2 : 3 * k + 1]
+        # the step times of a stage add up to 1: the total time still counts stages
+        assert before[0] + band[0] + after[0] == pytest.approx(1.0, abs=1e-12)
+        d = np.sign(CYCLE[k] - CYCLE[k - 1])
+        peak = settings.peak_cload_n
+        lo, hi = sorted((band[2], before[2]))
+        assert (lo * peak, hi * peak) == pytest.approx(
+            sorted((d * (touch + settings.touch_band_n), d * (touch - settings.touch_band_n)))
+        )
+        assert after[2] == CYCLE[k]
+        # the band's increment, in newtons of *CLOAD
+        span_n = abs(CYCLE[k] - CYCLE[k - 1]) * peak
+        assert band[1] * span_n == pytest.approx(TOUCH_INCREMENT_N)
+        assert before[1] == after[1] == pytest.approx(1.0 / settings.increments_per_stage)
+
+
+def test_touch_band_needs_free_play():
+    assert DeckSettings.exact_mortar().touch_increment_n is None
+    with pytest.raises(ParameterError, match=r"touch_increment_n = 0.01 N needs free play"):
+        DeckSettings(touch_increment_n=0.01)
+    with pytest.raises(ParameterError, match=r"touch_band_n = 20 N must be below"):
+        DeckSettings(clearance_mm=0.1, touch_increment_n=0.01, touch_band_n=20.0)
+    with pytest.raises(ParameterError, match=r"touch_increment_n"):
+        DeckSettings(clearance_mm=0.1, touch_increment_n=-1.0)
 
 
 def test_default_deck_keeps_ccx_tolerances(hinge_deck):
