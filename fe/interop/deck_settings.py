@@ -88,16 +88,19 @@ class DeckSettings:
             looser one never used: the loop width of the hinge is about 1 % of its peak
             displacement, so the defaults leave errors of the size being compared.
         touch_increment_n: With clearance: the largest ``*CLOAD`` increment [N] within
-            ``touch_band_n`` of the force at which, after a reversal, the pin has crossed
-            the free play and touches the other side (grip spring × 2Δr; the hinge carries
-            nothing there). Each reversal step is then written as three steps (before, in,
-            after the band) whose step times still add up to 1. None: uniform increments.
-            ccx detects a new contact once per increment and resolves an overlap over the
-            next increments, so a pin that crosses the 4Δr free play inside one increment
-            runs up to 82 µm into the hole (docs/calculix_crosscheck.md); with 0.005 N
-            increments at the 50 N/mm grip spring it moves 0.1 µm per increment there.
-        touch_band_n: Half width of that band [N] (0.5 N: ±25 µm of pin travel at 50 N/mm,
-            which holds the touch despite the parts' residual deformation).
+            ``touch_band_n`` of the two forces of a reversal where the pin leaves one side of
+            the free play and touches the other (∓ grip spring × 2Δr: the hinge carries
+            nothing there). Each reversal step is then written as five steps (before, in,
+            between and after the bands) whose step times still add up to 1. None: uniform
+            increments. ccx detects a new contact once per increment and resolves an
+            overlap over the next increments, so a pin that crosses the 4Δr free play in
+            one increment runs up to 82 µm into the hole; and an increment that takes the
+            hinge from ~30 N to free flight draws a chord across the free play whose
+            triangle is 750 times our loop area (docs/calculix_crosscheck.md). With
+            0.005 N increments at the 50 N/mm grip spring the pin moves 0.1 µm per
+            increment in the bands.
+        touch_band_n: Half width of each band [N] (0.1 N: ±2 µm of pin travel at 50 N/mm;
+            the measured touch was within 0.01 µm of 2Δr).
     """
 
     amplitude_n: float = 400.0
@@ -114,7 +117,7 @@ class DeckSettings:
     load_factors: tuple[float, ...] = CYCLE
     field_tolerance: float | None = None
     touch_increment_n: float | None = None
-    touch_band_n: float = 0.5
+    touch_band_n: float = 0.1
 
     def __post_init__(self) -> None:
         if not self.load_factors:
@@ -150,7 +153,7 @@ class DeckSettings:
                     f"grip spring (clearance_mm = {self.clearance_mm:g}, grip spring "
                     f"{self.grip_spring:g} N/mm): there is no touch to refine"
                 )
-            if self.touch_band_n >= self.grip_spring * 2.0 * self.clearance_mm:
+            if self.touch_band_n >= self.grip_spring * 2.0 * self.clearance_mm:  # bands apart
                 raise ParameterError(
                     f"touch_band_n = {self.touch_band_n:g} N must be below the grip spring's "
                     f"force at the touch, {self.grip_spring * 2.0 * self.clearance_mm:g} N"

@@ -393,22 +393,25 @@ def _segments(
 ) -> list[tuple[float, float, float]]:
     """A stage as ccx steps: (step time, largest increment, load factor at its end) each.
 
-    One step, unless ``s.touch_increment_n`` refines the band around the reversal's touch
-    (three steps whose times add up to 1, so that the total time still counts stages).
+    One step, unless ``s.touch_increment_n`` refines the two bands of a reversal where the
+    pin leaves one side of the free play and where it touches the other (five steps whose
+    times add up to 1, so that the total time still counts stages).
     """
     n = max(2, s.increments_per_stage // 2) if k == 0 else s.increments_per_stage
     if s.touch_increment_n is None or k == 0 or target == previous:
         return [(1.0, 1.0 / n, target)]
     peak = s.peak_cload_n
-    direction = 1.0 if target > previous else -1.0
-    touch = direction * s.grip_spring * 2.0 * s.clearance_mm / peak  # load factor
+    d = 1.0 if target > previous else -1.0
+    spring = s.grip_spring * 2.0 * s.clearance_mm / peak  # load factor: the spring alone
     half = s.touch_band_n / peak
-    ends = [touch - direction * half, touch + direction * half, target]
+    # leave (-d·spring) and touch (+d·spring), each within a band of ±half, then the peak
+    ends = [-d * spring - d * half, -d * spring + d * half]
+    ends += [d * spring - d * half, d * spring + d * half, target]
     span = target - previous
     out, start = [], previous
     for j, end in enumerate(ends):
         period = (end - start) / span
-        dt = s.touch_increment_n / (abs(span) * peak) if j == 1 else 1.0 / n
+        dt = s.touch_increment_n / (abs(span) * peak) if j in (1, 3) else 1.0 / n
         out.append((period, min(dt, period), end))
         start = end
     return out

@@ -427,39 +427,41 @@ def _stages(cards, settings):
     return out
 
 
-def test_touch_band_splits_each_reversal_into_three_steps(hinge):
-    """With clearance the mortar deck refines the load where the pin touches again."""
+def test_touch_bands_split_each_reversal_into_five_steps(hinge):
+    """With clearance the mortar deck refines the load where the pin leaves and touches."""
     model, mesh = hinge
     settings = DeckSettings.exact_mortar(clearance_mm=0.1, amplitude_n=400.0)
     assert settings.touch_increment_n == TOUCH_INCREMENT_N
     steps = _stages(parse_cards(deck_text(mesh, model.faces, settings)), settings)
-    assert len(steps) == 1 + 3 * (len(CYCLE) - 1)
+    assert len(steps) == 1 + 5 * (len(CYCLE) - 1)
     assert steps[0] == pytest.approx((1.0, 2.0 / settings.increments_per_stage, CYCLE[0]))
-    touch = settings.grip_spring * 2 * settings.clearance_mm  # 10 N: the spring alone
-    assert touch == pytest.approx(10.0)
+    peak, band = settings.peak_cload_n, settings.touch_band_n
+    spring = settings.grip_spring * 2 * settings.clearance_mm  # 10 N: the spring alone
+    assert spring == pytest.approx(10.0)
     for k in range(1, len(CYCLE)):
-        before, band, after = steps[3 * k - 2 : 3 * k + 1]
+        segs = steps[5 * k - 4 : 5 * k + 1]
         # the step times of a stage add up to 1: the total time still counts stages
-        assert before[0] + band[0] + after[0] == pytest.approx(1.0, abs=1e-12)
+        assert sum(s[0] for s in segs) == pytest.approx(1.0, abs=1e-12)
         d = np.sign(CYCLE[k] - CYCLE[k - 1])
-        peak = settings.peak_cload_n
-        lo, hi = sorted((band[2], before[2]))
-        assert (lo * peak, hi * peak) == pytest.approx(
-            sorted((d * (touch + settings.touch_band_n), d * (touch - settings.touch_band_n)))
+        ends = [s[2] * peak for s in segs]
+        leave, touch = -d * spring, d * spring
+        assert ends[:4] == pytest.approx(
+            [leave - d * band, leave + d * band, touch - d * band, touch + d * band]
         )
-        assert after[2] == CYCLE[k]
-        # the band's increment, in newtons of *CLOAD
+        assert segs[-1][2] == CYCLE[k]
+        # the bands' increments, in newtons of *CLOAD; coarse elsewhere
         span_n = abs(CYCLE[k] - CYCLE[k - 1]) * peak
-        assert band[1] * span_n == pytest.approx(TOUCH_INCREMENT_N)
-        assert before[1] == after[1] == pytest.approx(1.0 / settings.increments_per_stage)
+        assert segs[1][1] * span_n == pytest.approx(TOUCH_INCREMENT_N)
+        assert segs[3][1] * span_n == pytest.approx(TOUCH_INCREMENT_N)
+        assert segs[0][1] == segs[4][1] == pytest.approx(1.0 / settings.increments_per_stage)
 
 
 def test_touch_band_needs_free_play():
     assert DeckSettings.exact_mortar().touch_increment_n is None
     with pytest.raises(ParameterError, match=r"touch_increment_n = 0.01 N needs free play"):
         DeckSettings(touch_increment_n=0.01)
-    with pytest.raises(ParameterError, match=r"touch_band_n = 20 N must be below"):
-        DeckSettings(clearance_mm=0.1, touch_increment_n=0.01, touch_band_n=20.0)
+    with pytest.raises(ParameterError, match=r"touch_band_n = 10 N must be below"):
+        DeckSettings(clearance_mm=0.1, touch_increment_n=0.01, touch_band_n=10.0)
     with pytest.raises(ParameterError, match=r"touch_increment_n"):
         DeckSettings(clearance_mm=0.1, touch_increment_n=-1.0)
 
