@@ -166,7 +166,7 @@ class DeckSettings:
         Mortar contact, hard normal contact, exact stick, no ``ADJUST`` (a mesh whose pin
         and hole nodes sit at the same angles starts without overclosure), tight
         convergence criteria (1e-4) and, with clearance, ``TOUCH_INCREMENT_N`` increments
-        where the pin touches after crossing the free play.
+        where the pin leaves one side of the free play and touches the other.
         """
         base: dict[str, object] = {
             "contact": ContactType.MORTAR,

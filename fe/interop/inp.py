@@ -423,13 +423,19 @@ def _steps(s: DeckSettings, roles: _Roles, sign: float, dof: int) -> list[str]:
     number = 0
     for k, target in enumerate(s.load_factors):
         start = previous
-        for period, dt, end in _segments(s, k, previous, target):
+        segments = _segments(s, k, previous, target)
+        for period, dt, end in segments:
             number += 1
             force = sign * end * s.peak_cload_n
+            what = (
+                f"grip force {start * s.amplitude_n:+g} -> {end * s.amplitude_n:+g} N"
+                if len(segments) == 1
+                else f"*CLOAD {sign * start * s.peak_cload_n:+.6g} -> {force:+.6g} N"
+                f" (stage {k + 1}: to {target * s.amplitude_n:+g} N through the free play)"
+            )
             out += [
                 "**",
-                f"** ==== Step {number}: grip force {start * s.amplitude_n:+g} -> "
-                f"{end * s.amplitude_n:+g} N, ramped linearly over step time {period:.9g} ====",
+                f"** ==== Step {number}: {what}, ramped linearly over step time {period:.9g} ====",
                 "** *STATIC: initial increment, step time, smallest increment, largest increment.",
                 "*STEP, INC=10000",
                 "*STATIC",
