@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import numpy.typing as npt
 
@@ -67,6 +69,13 @@ def solve_increment(
     prob = validate_problem(W, w_free, state_prev, G, e, symmetric)._replace(
         mu=settings.mu_per_point(m)
     )
+    if (
+        settings.frictionless_start
+        and start is None
+        and not np.any(state_prev.p)
+        and np.any(np.asarray(prob.mu) > 0.0)
+    ):
+        return _from_frictionless(W, w_free, state_prev, settings, G, e, increment, prob.symmetric)
     blocks = np.diagonal(prob.W).reshape(m, 3)
     r_base = settings.r_scale / blocks.mean(axis=1)
     col_sq = float(np.max(np.sum(prob.G**2, axis=0))) if k else 0.0
@@ -172,6 +181,55 @@ def newton(
         sum(x.factorizations for x in runs),
         0 if ws is None else ws.gmres_iterations - gmres_before,
         n_iter - run.iterations,
+    )
+
+
+FRICTIONLESS_START_MAX_ITER = 20
+"""Iteration budget of the frictionless pre-solve of ``ContactSettings.frictionless_start``
+(the hinge's takes 3-4)."""
+
+
+def _from_frictionless(
+    W: FloatArray,
+    w_free: FloatArray,
+    state_prev: ContactState,
+    settings: ContactSettings,
+    G: FloatArray | None,
+    e: FloatArray | None,
+    increment: int,
+    symmetric: bool,
+) -> IncrementResult:
+    """The increment from rest, started at its frictionless solution (``frictionless_start``).
+
+    Both solves' iterations, factorisations and residual histories are summed; the works
+    are the frictional solve's (from ``state_prev``, as always). A frictionless solve that
+    does not converge within ``FRICTIONLESS_START_MAX_ITER`` iterations (there may be no
+    frictionless equilibrium: a load only friction carries) is dropped, its iterations
+    counted, and the increment solved from rest.
+    """
+    plain = dataclasses.replace(settings, frictionless_start=False)
+
+    def solve(use: ContactSettings, start: tuple[FloatArray, FloatArray] | None) -> IncrementResult:
+        return solve_increment(
+            W, w_free, state_prev, use, G=G, e=e, increment=increment, start=start,
+            symmetric=symmetric,
+        )  # fmt: skip
+
+    budget = min(settings.max_iter, FRICTIONLESS_START_MAX_ITER)
+    try:
+        pre = solve(dataclasses.replace(plain, mu=0.0, max_iter=budget), None)
+    except ConvergenceError as err:  # e.g. a load only friction can carry: from rest
+        res = solve(plain, None)
+        return dataclasses.replace(res, iterations=err.iteration + res.iterations)
+    res = solve(plain, (pre.state.p, pre.state.alpha))
+    return dataclasses.replace(
+        res,
+        iterations=pre.iterations + res.iterations,
+        residuals=(*pre.residuals, *res.residuals),
+        rescues=pre.rescues + res.rescues,
+        factorizations=pre.factorizations + res.factorizations,
+        linear_iterations=pre.linear_iterations + res.linear_iterations,
+        regularised_iterations=pre.regularised_iterations + res.regularised_iterations,
     )
 
 

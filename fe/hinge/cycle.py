@@ -207,12 +207,15 @@ def hinge_contact(settings: CycleSettings) -> ContactSettings:
 
     Open-point elimination (``ContactSettings.working_set``: about half the points are open
     at any load, and every product of the Newton loop then reads a quarter of ``W``) and
-    float32 Krylov bases from ``HINGE_SINGLE_MIN`` unknowns. Both change the path only.
+    float32 Krylov bases from ``HINGE_SINGLE_MIN`` unknowns, and the first increment from
+    rest started at its frictionless solution (``ContactSettings.frictionless_start``).
+    All of them change the path only.
     """
     base = settings.contact()
     return dataclasses.replace(
         base,
         working_set=True,
+        frictionless_start=True,
         krylov=dataclasses.replace(base.krylov, single_min=HINGE_SINGLE_MIN),
     )
 
