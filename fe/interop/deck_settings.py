@@ -31,6 +31,11 @@ TOUCH_INCREMENT_N = 0.005
 """``exact_mortar``'s ``touch_increment_n`` with clearance [N]: 0.1 µm of pin travel per
 increment at the 50 N/mm grip spring, below the hinge's loop width (~0.16 µm)."""
 
+SETTLE_INCREMENT_N = 0.3
+"""``exact_mortar``'s ``settle_increment_n`` with clearance [N]: the first ``*CLOAD`` increment
+after the touch. ccx's own cut-backs chose about this (7.8e-4 of a 390 N step) where its first
+try, a twentieth of the step, did not converge (1 mm conforming mesh, Δr 0.1)."""
+
 
 class ContactType(Enum):
     """CalculiX's contact discretisations (the deck's ``TYPE=``).
@@ -101,6 +106,14 @@ class DeckSettings:
             increment in the bands.
         touch_band_n: Half width of each band [N] (0.1 N: ±2 µm of pin travel at 50 N/mm;
             the measured touch was within 0.01 µm of 2Δr).
+        settle_increment_n: With ``touch_increment_n``: the *initial* ``*CLOAD`` increment
+            [N] of the step after the touch band, which ccx then grows (by 1.5 after an
+            increment that converges easily) up to the stage's increment. None: that step
+            starts at the stage's increment. After the touch the contact widens over the
+            next rows of nodes; ccx pairs its surfaces once per increment, and a large
+            increment there leaves the path for 0.1-0.2 µm over the next 100-200 N
+            (docs/calculix_crosscheck.md: its loop area was 4 times ours on a graded mesh,
+            1.1 times where its own cut-backs had made those increments small).
     """
 
     amplitude_n: float = 400.0
@@ -118,6 +131,7 @@ class DeckSettings:
     field_tolerance: float | None = None
     touch_increment_n: float | None = None
     touch_band_n: float = 0.1
+    settle_increment_n: float | None = None
 
     def __post_init__(self) -> None:
         if not self.load_factors:
@@ -145,6 +159,13 @@ class DeckSettings:
         if self.grip_spring_n_per_mm is not None:
             check_range("grip_spring_n_per_mm", self.grip_spring_n_per_mm, 0.0, 1e9)
         check_range("touch_band_n", self.touch_band_n, 0.0, 1e3, lo_open=True)
+        if self.settle_increment_n is not None:
+            check_range("settle_increment_n", self.settle_increment_n, 0.0, 1e3, lo_open=True)
+            if self.touch_increment_n is None:
+                raise ParameterError(
+                    f"settle_increment_n = {self.settle_increment_n:g} N needs "
+                    "touch_increment_n (it sets the step after the touch band)"
+                )
         if self.touch_increment_n is not None:
             check_range("touch_increment_n", self.touch_increment_n, 0.0, 1e3, lo_open=True)
             if self.clearance_mm == 0.0 or self.grip_spring == 0.0:
@@ -166,7 +187,8 @@ class DeckSettings:
         Mortar contact, hard normal contact, exact stick, no ``ADJUST`` (a mesh whose pin
         and hole nodes sit at the same angles starts without overclosure), tight
         convergence criteria (1e-4) and, with clearance, ``TOUCH_INCREMENT_N`` increments
-        where the pin leaves one side of the free play and touches the other.
+        where the pin leaves one side of the free play and touches the other, and a first
+        increment of ``SETTLE_INCREMENT_N`` after the touch.
         """
         base: dict[str, object] = {
             "contact": ContactType.MORTAR,
@@ -178,6 +200,7 @@ class DeckSettings:
         clearance = overrides.get("clearance_mm", 0.0)
         if isinstance(clearance, (int, float)) and clearance > 0.0:
             base["touch_increment_n"] = TOUCH_INCREMENT_N
+            base["settle_increment_n"] = SETTLE_INCREMENT_N
         return cls(**{**base, **overrides})  # type: ignore[arg-type]
 
     @property

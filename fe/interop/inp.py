@@ -49,6 +49,7 @@ from cad.surfaces import Plane
 from fe.interop.deck_settings import (
     CYCLE,
     EXACT_STICK_SLOPE_MPA_PER_MM,
+    SETTLE_INCREMENT_N,
     TOUCH_INCREMENT_N,
     ContactType,
     DeckSettings,
@@ -60,6 +61,7 @@ __all__ = [
     "CYCLE",
     "EXACT_STICK_SLOPE_MPA_PER_MM",
     "GRIP_REF_SET",
+    "SETTLE_INCREMENT_N",
     "TOUCH_INCREMENT_N",
     "ContactType",
     "DeckSettings",
@@ -390,16 +392,17 @@ def _controls(s: DeckSettings) -> list[str]:
 
 def _segments(
     s: DeckSettings, k: int, previous: float, target: float
-) -> list[tuple[float, float, float]]:
-    """A stage as ccx steps: (step time, largest increment, load factor at its end) each.
+) -> list[tuple[float, float, float, float]]:
+    """A stage as ccx steps: (step time, initial and largest increment, load factor at its end).
 
     One step, unless ``s.touch_increment_n`` refines the two bands of a reversal where the
     pin leaves one side of the free play and where it touches the other (five steps whose
-    times add up to 1, so that the total time still counts stages).
+    times add up to 1, so that the total time still counts stages); ``s.settle_increment_n``
+    then sets the first increment of the step after the touch band.
     """
     n = max(2, s.increments_per_stage // 2) if k == 0 else s.increments_per_stage
     if s.touch_increment_n is None or k == 0 or target == previous:
-        return [(1.0, 1.0 / n, target)]
+        return [(1.0, 1.0 / n, 1.0 / n, target)]
     peak = s.peak_cload_n
     d = 1.0 if target > previous else -1.0
     spring = s.grip_spring * 2.0 * s.clearance_mm / peak  # load factor: the spring alone
@@ -412,7 +415,11 @@ def _segments(
     for j, end in enumerate(ends):
         period = (end - start) / span
         dt = s.touch_increment_n / (abs(span) * peak) if j in (1, 3) else 1.0 / n
-        out.append((period, min(dt, period), end))
+        dt = min(dt, period)
+        first = dt
+        if j == 4 and s.settle_increment_n is not None:
+            first = min(dt, s.settle_increment_n / (abs(span) * peak))
+        out.append((period, first, dt, end))
         start = end
     return out
 
@@ -424,7 +431,7 @@ def _steps(s: DeckSettings, roles: _Roles, sign: float, dof: int) -> list[str]:
     for k, target in enumerate(s.load_factors):
         start = previous
         segments = _segments(s, k, previous, target)
-        for period, dt, end in segments:
+        for period, first, dt, end in segments:
             number += 1
             force = sign * end * s.peak_cload_n
             what = (
@@ -439,7 +446,7 @@ def _steps(s: DeckSettings, roles: _Roles, sign: float, dof: int) -> list[str]:
                 "** *STATIC: initial increment, step time, smallest increment, largest increment.",
                 "*STEP, INC=10000",
                 "*STATIC",
-                f"{_num(dt)}, {_num(period)}, {_num(dt * 1e-5)}, {_num(dt)}",
+                f"{_num(first)}, {_num(period)}, {_num(first * 1e-5)}, {_num(dt)}",
                 *_controls(s),
                 "*CLOAD",
                 f"{GRIP_REF_SET}, {dof}, {_num(force)}",

@@ -31,6 +31,7 @@ from fe.interop.inp import (
     CYCLE,
     EXACT_STICK_SLOPE_MPA_PER_MM,
     GRIP_REF_SET,
+    SETTLE_INCREMENT_N,
     TOUCH_INCREMENT_N,
     ContactType,
     DeckSettings,
@@ -417,12 +418,18 @@ def test_exact_mortar_deck_has_no_penalty(hinge):
     assert all(c.data[0][2] == c.data[0][3] == "50" for c in times)  # never the looser R_p
 
 
-def _stages(cards, settings):
-    """Per step: (step time, largest increment, *CLOAD at its end as a load factor)."""
+def _stages(cards, settings, initial=None):
+    """Per step: (step time, largest increment, *CLOAD at its end as a load factor).
+
+    ``initial`` (a list) receives each step's initial increment.
+    """
     out = []
     for st, cl in zip(cards_of(cards, "STATIC"), cards_of(cards, "CLOAD"), strict=True):
         dt0, period, _, dt_max = (float(x) for x in st.data[0])
-        assert dt0 == dt_max
+        if initial is None:
+            assert dt0 == dt_max
+        else:
+            initial.append(dt0)
         out.append((period, dt_max, float(cl.data[0][2]) / settings.peak_cload_n))
     return out
 
@@ -432,7 +439,9 @@ def test_touch_bands_split_each_reversal_into_five_steps(hinge):
     model, mesh = hinge
     settings = DeckSettings.exact_mortar(clearance_mm=0.1, amplitude_n=400.0)
     assert settings.touch_increment_n == TOUCH_INCREMENT_N
-    steps = _stages(parse_cards(deck_text(mesh, model.faces, settings)), settings)
+    assert settings.settle_increment_n == SETTLE_INCREMENT_N
+    first: list[float] = []
+    steps = _stages(parse_cards(deck_text(mesh, model.faces, settings)), settings, first)
     assert len(steps) == 1 + 5 * (len(CYCLE) - 1)
     assert steps[0] == pytest.approx((1.0, 2.0 / settings.increments_per_stage, CYCLE[0]))
     peak, band = settings.peak_cload_n, settings.touch_band_n
@@ -454,6 +463,12 @@ def test_touch_bands_split_each_reversal_into_five_steps(hinge):
         assert segs[1][1] * span_n == pytest.approx(TOUCH_INCREMENT_N)
         assert segs[3][1] * span_n == pytest.approx(TOUCH_INCREMENT_N)
         assert segs[0][1] == segs[4][1] == pytest.approx(1.0 / settings.increments_per_stage)
+        # after the touch band ccx starts small (SETTLE_INCREMENT_N) and grows; elsewhere
+        # every step starts at its largest increment
+        starts = first[5 * k - 4 : 5 * k + 1]
+        assert starts[4] * span_n == pytest.approx(SETTLE_INCREMENT_N)
+        assert starts[:4] == [s[1] for s in segs[:4]]
+    assert first[0] == steps[0][1]
 
 
 def test_touch_band_needs_free_play():
@@ -464,6 +479,19 @@ def test_touch_band_needs_free_play():
         DeckSettings(clearance_mm=0.1, touch_increment_n=0.01, touch_band_n=10.0)
     with pytest.raises(ParameterError, match=r"touch_increment_n"):
         DeckSettings(clearance_mm=0.1, touch_increment_n=-1.0)
+    with pytest.raises(ParameterError, match=r"settle_increment_n = 0.3 N needs touch_incr"):
+        DeckSettings(clearance_mm=0.1, settle_increment_n=0.3)
+    with pytest.raises(ParameterError, match=r"settle_increment_n"):
+        DeckSettings(clearance_mm=0.1, touch_increment_n=0.01, settle_increment_n=0.0)
+    assert DeckSettings.exact_mortar().settle_increment_n is None
+
+
+def test_without_settle_increment_every_step_starts_at_its_largest(hinge):
+    model, mesh = hinge
+    settings = DeckSettings.exact_mortar(clearance_mm=0.1, settle_increment_n=None)
+    first: list[float] = []
+    steps = _stages(parse_cards(deck_text(mesh, model.faces, settings)), settings, first)
+    assert first == [s[1] for s in steps]
 
 
 def test_default_deck_keeps_ccx_tolerances(hinge_deck):
