@@ -362,6 +362,39 @@ def test_ccx_bar_matches_closed_form(tmp_path):
     assert fig.area_nmm == pytest.approx(0.0, abs=1e-12)
 
 
+def test_loop_figures_remove_the_free_play_from_every_point():
+    """A force left at the end of a free-play crossing counts only over what is left of it.
+
+    A hinge of compliance 1/k with a friction loop of width 2c (down branch δ = F/k + c, up
+    branch δ = F/k − c: area 4 c Fg), seen at the grip through a free play of 4Δr crossed at
+    F = 0 in one increment that ends 10 µm before the touch with 0.2 N, which then falls to
+    zero as the pin closes those 10 µm (as ccx on the 2 mm mesh). Removing half the free play
+    from every point leaves that force 10 µm to act over; on the raw points the trapezoid
+    across the 0.39 mm crossing was 0.039 N·mm, twice this loop.
+    """
+    k, c, fg, half = 4e4, 1e-5, 400.0, 0.2  # N/mm, mm, N, 2Δr [mm]
+    up_f = np.linspace(0.0, fg, 21)
+    f = [0.0, *up_f[1:]]  # stage 1: first loading, + side
+    x = [0.0, *(up_f[1:] / k + half)]
+    st = [1] * len(f)
+    for stage, sign in ((2, -1.0), (3, 1.0)):
+        branch = c if stage == 2 else -c  # down: +c, up: -c
+        ff = sign * np.concatenate([-up_f[::-1], up_f[1:]])  # the other peak to this one
+        for j, F in enumerate(ff):
+            if j == len(up_f) - 1:  # F = 0: the crossing, ending 10 µm short with 0.2 N
+                f += [0.0, sign * 0.2, sign * 0.1, 0.0]
+                x += [-sign * half + branch, *(sign * (half - g) for g in (0.01, 0.005, 0.0))]
+                st += [stage] * 4
+                continue
+            f.append(F)
+            x.append(F / k + branch + np.sign(F) * half)
+            st.append(stage)
+    fig = loop_figures(np.array(f), np.array(x), np.array(st), fg, free_play_mm=2 * half)
+    assert fig.area_nmm == pytest.approx(4 * c * fg, abs=2 * 0.2 * 0.01)  # ±0.25 of it
+    assert fig.disp_at_plus_mm == pytest.approx(fg / k - c)
+    assert fig.disp_at_minus_mm == pytest.approx(-fg / k + c)
+
+
 def test_dat_reader_names_a_bad_line(tmp_path):
     dat = tmp_path / "x.dat"
     dat.write_text(" displacements (vx,vy,vz) for set A and time  0.1E+01\n\n 1 2.0 x 3\n")
