@@ -72,6 +72,7 @@ def _direction(
     settings: ContactSettings,
     factor: Factor | None,
     ws: Workspace | None,
+    tol: float = 0.0,
 ) -> tuple[_Direction | None, Iterate | None]:
     """Newton direction and line search; a reused matrix that fails is replaced once.
 
@@ -82,7 +83,7 @@ def _direction(
     if ws is None:
         step = newton_step(prob, it, r, cut, reuse=factor, threads=threads)
     else:
-        step = krylov_step(prob, it, r, cut, ws, settings.krylov, threads)
+        step = krylov_step(prob, it, r, cut, ws, settings.krylov, threads, tol)
     new = None if step is None else _line_search(prob, it, step, r, settings)
     if step is None or not step.reused or new is not None:
         return (None if step is None else _Direction(step, int(not step.reused))), new
@@ -91,7 +92,7 @@ def _direction(
         retry = newton_step(prob, it, r, cut, threads=threads)
     else:
         ws.refresh = True
-        retry = krylov_step(prob, it, r, cut, ws, settings.krylov, threads)
+        retry = krylov_step(prob, it, r, cut, ws, settings.krylov, threads, tol)
     if retry is None:
         return None, None
     return _Direction(retry, 1), _line_search(prob, it, retry, r, settings)
@@ -213,7 +214,7 @@ def newton_loop(
     """
     r, history, rescues, n_factor, n_iter, factor = r_base, [], 0, 0, 0, None
     while it.rho > tol and n_iter < max_iter:
-        step, new = _direction(prob, it, r, cut, settings, factor, ws)
+        step, new = _direction(prob, it, r, cut, settings, factor, ws, tol)
         n_iter += 1
         if step is None and stop_on_singular:
             history.append(it.rho)

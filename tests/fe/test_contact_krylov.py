@@ -192,10 +192,12 @@ def test_sparse_product_equals_the_full_product(n_nonzero):
     np.testing.assert_allclose(contact_newton.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
 
 
-def test_gather_block_is_the_ix_block(monkeypatch):
+@pytest.mark.parametrize("max_runs", [200, 3])  # as rectangles of runs; by chunks of rows
+def test_gather_block_is_the_ix_block(monkeypatch, max_runs):
     from fe.contact import dense as contact_dense
 
     monkeypatch.setattr(contact_dense, "GATHER_ROWS", 7)  # several chunks, a ragged last one
+    monkeypatch.setattr(contact_dense, "GATHER_RUNS", max_runs)  # idx has 6 runs
     W = random_W(30, 7)
     idx = np.array([0, 3, 4, 5, 11, 12, 20, 21, 22, 23, 24, 25, 26, 28, 29, 30, 60, 89])
     out = contact_dense.gather_block(W, idx)
@@ -312,6 +314,7 @@ def test_block_product_is_w_s_on_the_closed_dofs():
         ({"turn_cos": 1.5}, r"krylov\.turn_cos must be in \[-1, 1\], got 1\.5"),
         ({"max_iter": 0}, r"krylov\.max_iter"),
         ({"max_update": -0.1}, r"krylov\.max_update"),
+        ({"oversolve": 2.0}, r"krylov\.oversolve must be in \[0, 1\], got 2"),
     ],
 )
 def test_bad_krylov_option_names_itself(kwargs, match):
@@ -319,3 +322,17 @@ def test_bad_krylov_option_names_itself(kwargs, match):
 
     with pytest.raises(ParameterError, match=match):
         KrylovOptions(**kwargs)
+
+
+def test_oversolving_safeguard_keeps_the_solution_with_fewer_gmres_iterations():
+    """GMRES stops at about ``tol/ρ`` in the last steps instead of ``ρ²``: every increment
+    still ends below ``tol``, on the same forces, with fewer linear iterations."""
+    tight = KrylovOptions(oversolve=0.0)
+    loose = KrylovOptions(oversolve=1e-2)
+    ref = punch_history(ContactSettings(mu=0.3, linear_solver=LinearSolver.KRYLOV, krylov=tight))
+    new = punch_history(ContactSettings(mu=0.3, linear_solver=LinearSolver.KRYLOV, krylov=loose))
+    for a, b in zip(ref, new, strict=True):
+        assert b.residuals[-1] <= ContactSettings().tol
+        np.testing.assert_allclose(b.state.p, a.state.p, atol=1e-8 * np.max(np.abs(a.state.p)))
+        np.testing.assert_array_equal(b.state.status, a.state.status)
+    assert sum(b.linear_iterations for b in new) < sum(a.linear_iterations for a in ref)

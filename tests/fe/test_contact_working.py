@@ -85,9 +85,9 @@ def test_working_set_gives_the_full_solution(margin, monkeypatch):
     added = []
     solve = contact_working._restricted
 
-    def spy(prob, points):
+    def spy(prob, points, gap=None):
         added.append(len(points))
-        return solve(prob, points)
+        return solve(prob, points, gap)
 
     monkeypatch.setattr(contact_working, "_restricted", spy)
     full = cycle(ContactSettings(mu=0.3), LOADS)
@@ -110,12 +110,13 @@ def test_working_set_never_drops_a_point_that_closes(monkeypatch):
         "select_points",
         lambda prob, prev, it, margin: np.flatnonzero(np.any(prev.p != 0.0, axis=1)),
     )
+    monkeypatch.setattr(contact_working, "HEADROOM", 0.0)  # no spare points to catch them
     sizes = []
     restrict = contact_working._restricted
 
-    def spy(prob, points):
+    def spy(prob, points, gap=None):
         sizes.append(len(points))
-        return restrict(prob, points)
+        return restrict(prob, points, gap)
 
     monkeypatch.setattr(contact_working, "_restricted", spy)
     full = cycle(ContactSettings(mu=0.3), LOADS[:6])
@@ -266,3 +267,40 @@ def test_loose_gmres_solves_in_float32_stay_within_their_tolerance():
     )
     assert tight is not None
     np.testing.assert_allclose(tight.dp, ref.dp, atol=1e-10 * scale)
+
+
+def test_headroom_takes_the_nearest_open_points():
+    gap = np.array([0.0, 5.0, 0.1, 3.0, 0.2, 9.0, 0.05, 4.0, 1.0, 2.0, 7.0, 6.0, 8.0, 0.3])
+    gap = np.concatenate([gap, np.full(6, 10.0)])  # 20 points
+    points = np.arange(0, 14, 2, dtype=np.int64)  # 7 points: one extra at 15 %
+    got = contact_working._with_headroom(points, gap)
+    assert got.dtype == np.int64
+    # the smallest gap outside {0, 2, ..., 12} is point 13 (0.3 mm)
+    np.testing.assert_array_equal(got, np.union1d(points, [13]))
+    np.testing.assert_array_equal(contact_working._with_headroom(points, None), points)
+    # never past MAX_FRACTION of the points (10 of 20): a set of 10 gets no spare point
+    ten = np.arange(10, dtype=np.int64)
+    np.testing.assert_array_equal(contact_working._with_headroom(ten, gap), ten)
+
+
+def test_headroom_spares_gathers_while_the_zone_grows(monkeypatch):
+    """A growing contact zone with a set of exactly the points needed is gathered at every
+    increment; with spare points nearest to closing, at fewer, with the same solution."""
+    counts = {}
+    gather = contact_working.gather_block
+    for headroom in (0.0, contact_working.HEADROOM):
+        monkeypatch.setattr(contact_working, "HEADROOM", headroom)
+        n = [0]
+
+        def counted(W, idx, n=n):
+            n[0] += 1
+            return gather(W, idx)
+
+        monkeypatch.setattr(contact_working, "gather_block", counted)
+        settings = ContactSettings(mu=0.3, working_set=True, working_margin=0.0)
+        counts[headroom] = (n, cycle(settings, LOADS[:8]))
+    (n_none, plain), (n_spare, spare) = counts.values()
+    assert n_spare[0] < n_none[0]
+    for a, b in zip(plain, spare, strict=True):
+        np.testing.assert_allclose(b.state.p, a.state.p, atol=1e-9 * np.max(np.abs(a.state.p)))
+        np.testing.assert_array_equal(b.state.status, a.state.status)
