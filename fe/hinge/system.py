@@ -412,6 +412,7 @@ def condense(
     Cm = _columns(C, master_nodes)
     W = np.asarray(Cs @ (Cs @ S_slave).T) + np.asarray(Cm @ (Cm @ S_master).T)
     W = 0.5 * (W + W.T)
+    W.setflags(write=False)  # constant: the contact solver then checks it once per cycle
     G = np.column_stack([C @ system.pin_R, C @ system.u_grip])
     w0 = np.column_stack([geo.g0, np.zeros((len(geo.g0), 2))])
     outside = None if excluded is None or len(excluded.slave) == 0 else excluded

@@ -7,7 +7,7 @@ import pytest
 from threadpoolctl import threadpool_info
 
 from cad.errors import ParameterError
-from fe.contact import ContactSettings
+from fe.contact import ContactSettings, ContactState
 from fe.contact import dense as contact_dense
 from fe.contact.dense import LU_THREADED_MIN, factor_jacobian, lu_threads
 
@@ -48,3 +48,57 @@ def test_factor_uses_the_given_thread_count(monkeypatch):
     assert factor_jacobian(J[:10, :10].copy(), np.arange(10, dtype=np.int64), threads=2) is not None
     assert seen == [2]  # only the large LU is threaded
     assert threadpool_info()  # the BLAS is visible to threadpoolctl
+
+
+def _counted_sums(monkeypatch, W):
+    """Count the passes of ``np.sum`` over ``W`` (the fingerprint's)."""
+    calls = []
+    total = np.sum
+
+    def counted(a, *args, **kwargs):
+        if a is W:
+            calls.append(1)
+        return total(a, *args, **kwargs)
+
+    monkeypatch.setattr(np, "sum", counted)
+    return calls
+
+
+def test_a_frozen_W_is_summed_once_a_writeable_one_every_time(monkeypatch):
+    from fe.contact.state import fingerprint
+
+    W = np.arange(36.0).reshape(6, 6).copy()  # owns its data
+    calls = _counted_sums(monkeypatch, W)
+    first = fingerprint(W)
+    W[0, 0] += 1.0  # writeable: a change in place must show
+    assert fingerprint(W) == first + 1.0
+    assert len(calls) == 2
+    W.setflags(write=False)
+    frozen = fingerprint(W)
+    assert fingerprint(W) == frozen == first + 1.0
+    assert len(calls) == 3  # the second call of the frozen W reused the sum
+
+
+def test_a_read_only_view_of_a_writeable_array_is_not_frozen(monkeypatch):
+    from fe.contact.state import fingerprint
+
+    base = np.ones((6, 6))
+    view = base[:, :]
+    view.setflags(write=False)
+    calls = _counted_sums(monkeypatch, view)
+    assert fingerprint(view) == 36.0
+    base[1, 1] = 2.0  # reaches the view's data
+    assert fingerprint(view) == 37.0
+    assert len(calls) == 2
+
+
+def test_a_frozen_W_is_still_checked_for_finiteness_once():
+    from fe.contact.state import validate_problem
+
+    W = np.eye(3)
+    W[1, 1] = np.nan
+    W.setflags(write=False)
+    with pytest.raises(ParameterError, match="W and w_free must be finite"):
+        validate_problem(W, np.zeros((1, 3)), ContactState.initial(1), None, None)
+    with pytest.raises(ParameterError, match="W and w_free must be finite"):
+        validate_problem(W, np.zeros((1, 3)), ContactState.initial(1), None, None)

@@ -182,3 +182,14 @@ def test_machine_path_crosses_the_free_play_at_zero_force(loose_400):
     assert np.all(
         F_raw[np.abs(np.diff(d_raw, prepend=d_raw[0])) > 0.5 * loose_400.free_play_mm] == 0.0
     )
+
+
+def test_the_condensed_W_is_frozen_so_the_solver_checks_it_once(tight_400):
+    """Nothing may write into the hinge's W (its caches trust it): read-only, owning its data."""
+    from fe.contact.state import _unwritable
+
+    W = tight_400.configs[1].W
+    assert not W.flags.writeable
+    assert _unwritable(W)
+    with pytest.raises(ValueError, match="read-only"):
+        W[0, 0] = 0.0
