@@ -16,7 +16,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import numpy.typing as npt
 import scipy.linalg as sla
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController, threadpool_limits
 
 from cad.errors import ParameterError
 
@@ -28,11 +28,41 @@ LU_THREADS_ENV = "HINGELAB_LU_THREADS"
 LU_THREADED_MIN = 2000
 """Smallest reduced Jacobian factorised with :func:`lu_threads` threads.
 
-The rest of the contact phase runs on ``CycleSettings.blas_threads`` (1): its many
-small products and triangular solves were 3.4× slower with two threads (level 0,
-benchmarks/bench_cycle.py). A large LU is compute-bound and gains: measured on this
+The rest of the contact phase runs on ``CycleSettings.blas_threads`` (1) but for the
+large products (:func:`wide`): its many small operations and its triangular solves were
+3.4× slower with two threads (level 0, benchmarks/bench_cycle.py); threaded triangular
+solves (scipy's OpenBLAS, while numpy's spins from a product) made the level-1
+zero-clearance contact phase 70 → 78 s. A large LU is compute-bound and gains: measured on this
 2-core machine, 1 → 2 threads, n = 1000 / 3000 / 6000: 0.045 → 0.037 s, 0.82 → 0.50 s,
 5.3 → 3.1 s."""
+
+
+PRODUCT_THREADED_MIN = 1_000_000
+"""Products with a dense matrix of at least this many entries run on :func:`lu_threads`
+threads (:func:`wide`). They are memory-bound and a second core doubles the bandwidth:
+matrix-vector products on this 2-core machine, 1 → 2 threads, n = 1 000 / 2 000 / 5 100:
+0.28 → 0.14, 1.1 → 0.58, 13.5 → 6.1 ms (float64), 5.6 → 2.3 ms (n = 5 100, float32).
+Default hinge, Δr 0, contact phase: level 1 76.8 → 69.9 s, level 0 unchanged (4.7 s)."""
+
+_CONTROLLER: list[ThreadpoolController] = []
+
+
+def wide(entries: int, threads: int | None = None) -> contextlib.AbstractContextManager[object]:
+    """BLAS threads for one product with a dense matrix of ``entries`` entries.
+
+    ``lu_threads(threads)`` threads from ``PRODUCT_THREADED_MIN`` entries, else the
+    caller's setting unchanged. The controller is made on first use (by then numpy's and
+    scipy's BLAS are loaded) and switching costs ~10 µs, against milliseconds a product.
+    """
+    n = lu_threads(threads) if entries >= PRODUCT_THREADED_MIN else 1
+    if n <= 1:
+        return contextlib.nullcontext()
+    if not _CONTROLLER:
+        _CONTROLLER.append(ThreadpoolController())
+    limit: contextlib.AbstractContextManager[object] = _CONTROLLER[0].limit(
+        limits=n, user_api="blas"
+    )
+    return limit
 
 
 def _lu_threads_from_env() -> int:

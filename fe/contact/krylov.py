@@ -37,7 +37,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from cad.errors import check_range
-from fe.contact.dense import gather_block, lu_solve
+from fe.contact.dense import gather_block, lu_solve, wide
 from fe.contact.gmres import gmres
 from fe.contact.law import ContactStatus
 from fe.contact.newton import (
@@ -190,6 +190,7 @@ class _Operators(NamedTuple):
     R_b: sp.csr_array
     T_b: sp.csr_array
     d: FloatArray
+    threads: int | None = None
 
 
 def _ensure_block(prob: Problem, closed: IntArray, ws: Workspace) -> IntArray:
@@ -208,18 +209,21 @@ def _ensure_block(prob: Problem, closed: IntArray, ws: Workspace) -> IntArray:
     return block
 
 
-def _block_product(prob: Problem, ws: Workspace, x: FloatArray) -> FloatArray:
+def _block_product(
+    prob: Problem, ws: Workspace, x: FloatArray, threads: int | None = None
+) -> FloatArray:
     """``W x`` on the DOFs of ``ws.block`` (zero elsewhere), x of shape (m, 3).
 
     The block part is a product with ``W_block``; the few points outside the block where
     ``x ≠ 0`` (points that just opened) add their rows of the symmetric ``W``.
     """
     if ws.W_block is None or ws.block is None:
-        return sparse_product(prob.W, x)
+        return sparse_product(prob.W, x, threads=threads)
     m = len(x)
     dofs = (3 * ws.block[:, None] + np.arange(3)).ravel()
     out = np.zeros(3 * m)
-    out[dofs] = ws.W_block @ x[ws.block].ravel()
+    with wide(ws.W_block.size, threads):
+        out[dofs] = ws.W_block @ x[ws.block].ravel()
     outside = np.ones(m, dtype=bool)
     outside[ws.block] = False
     outside = np.flatnonzero(outside & np.any(x != 0.0, axis=1))
@@ -229,13 +233,13 @@ def _block_product(prob: Problem, ws: Workspace, x: FloatArray) -> FloatArray:
     return out
 
 
-def _operators(prob: Problem, lin: Linear, ws: Workspace) -> _Operators:
+def _operators(prob: Problem, lin: Linear, ws: Workspace, threads: int | None = None) -> _Operators:
     block = _ensure_block(prob, lin.closed, ws)
     W_b = prob.W if ws.W_block is None else ws.W_block
     dofs = (3 * block[:, None] + np.arange(3)).ravel()
     if len(dofs) == prob.W.shape[0]:
-        return _Operators(block, W_b, lin.R, lin.T, lin.d)
-    return _Operators(block, W_b, lin.R[:, dofs], lin.T[dofs, :], lin.d)
+        return _Operators(block, W_b, lin.R, lin.T, lin.d, threads)
+    return _Operators(block, W_b, lin.R[:, dofs], lin.T[dofs, :], lin.d, threads)
 
 
 def _block_fits(block: IntArray, closed: IntArray, m: int) -> bool:
@@ -248,7 +252,8 @@ def _block_fits(block: IntArray, closed: IntArray, m: int) -> bool:
 def _apply(ops: _Operators, X: FloatArray) -> FloatArray:
     """``J X`` for X of shape (n_q,) or (n_q, p) (float32 products if ``W_b`` is float32)."""
     y = ops.T_b @ X
-    Wy = np.asarray(ops.W_b @ y.astype(ops.W_b.dtype, copy=False), dtype=np.float64)
+    with wide(ops.W_b.size, ops.threads):
+        Wy = np.asarray(ops.W_b @ y.astype(ops.W_b.dtype, copy=False), dtype=np.float64)
     out: FloatArray = ops.R_b @ Wy
     return out + (ops.d * X.T).T
 
@@ -444,9 +449,9 @@ def krylov_step(
     # The closed set is the trial's (no forced points here): gather the block first, so
     # that the right-hand side's W s comes from it.
     _ensure_block(prob, np.flatnonzero(it.law.status != ContactStatus.OPEN), ws)
-    lin = linearise(prob, it, r, w_times=lambda x: _block_product(prob, ws, x))
+    lin = linearise(prob, it, r, w_times=lambda x: _block_product(prob, ws, x, threads))
     n = len(lin.keys)
-    ops = _operators(prob, lin, ws)
+    ops = _operators(prob, lin, ws, threads)
     r_bar = float(np.mean(r))
     if ws.base is not None and not ws.refresh and n >= opts.min_size and n > 0:
         step = _gmres_step(it, lin, ops, ws, opts, cut, r_bar, tol, refresh_after=True)

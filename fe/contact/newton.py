@@ -17,7 +17,7 @@ from fe.contact.dense import LU_THREADED_MIN as LU_THREADED_MIN
 from fe.contact.dense import Factor as Factor
 from fe.contact.dense import _lu_threads_from_env as _lu_threads_from_env
 from fe.contact.dense import factor_jacobian as factor_jacobian
-from fe.contact.dense import lu_threads
+from fe.contact.dense import lu_threads, wide
 from fe.contact.dense import solve_bordered as solve_bordered
 from fe.contact.law import ContactStatus, CoulombStep, coulomb_step, per_point, slip_frame
 
@@ -152,7 +152,9 @@ def evaluate(
     return Iterate(p, alpha, w, g, law, C, eq, merit, rho, Wp)
 
 
-def sparse_product(W: FloatArray, x: FloatArray, symmetric: bool = True) -> FloatArray:
+def sparse_product(
+    W: FloatArray, x: FloatArray, symmetric: bool = True, threads: int | None = None
+) -> FloatArray:
     """Return ``W x`` from the rows (symmetric ``W``) of the points where ``x ≠ 0``.
 
     The rows are read in runs of consecutive points, as slices (views): gathering them
@@ -163,13 +165,15 @@ def sparse_product(W: FloatArray, x: FloatArray, symmetric: bool = True) -> Floa
         W: Matrix, shape (3m, 3m), float64.
         x: Per-point vector, shape (m, 3), float64; typically nonzero on few points.
         symmetric: Whether ``W`` is symmetric (else the plain product is taken).
+        threads: BLAS threads of a large product (:func:`fe.contact.dense.wide`).
 
     Returns:
         ``W x`` flattened, shape (3m,), float64.
     """
     support = np.flatnonzero(np.any(x != 0.0, axis=1))
     if not symmetric or 4 * len(support) > 3 * len(x):  # the runs would read most of W
-        out: FloatArray = W @ x.ravel()
+        with wide(W.size, threads):
+            out: FloatArray = W @ x.ravel()
         return out
     # W symmetric: W x = Σ_j x_j W[j, :] over the nonzero x_j, run by run.
     breaks = np.flatnonzero(np.diff(support) != 1) + 1
@@ -179,8 +183,9 @@ def sparse_product(W: FloatArray, x: FloatArray, symmetric: bool = True) -> Floa
     )
     flat = x.ravel()
     rows = np.zeros(W.shape[1])
-    for a, b in zip(3 * starts, 3 * ends, strict=True):
-        rows += flat[a:b] @ W[a:b]
+    with wide(3 * len(support) * W.shape[1], threads):
+        for a, b in zip(3 * starts, 3 * ends, strict=True):
+            rows += flat[a:b] @ W[a:b]
     return rows
 
 

@@ -50,6 +50,39 @@ def test_factor_uses_the_given_thread_count(monkeypatch):
     assert threadpool_info()  # the BLAS is visible to threadpoolctl
 
 
+def _blas_threads():
+    return {i["filepath"]: i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+
+
+def test_large_products_run_on_the_lu_threads_small_ones_on_the_callers():
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        outside = _blas_threads()
+        with contact_dense.wide(contact_dense.PRODUCT_THREADED_MIN, threads=2):
+            assert set(_blas_threads().values()) == {2}
+        with contact_dense.wide(contact_dense.PRODUCT_THREADED_MIN - 1, threads=2):
+            assert _blas_threads() == outside
+        with contact_dense.wide(contact_dense.PRODUCT_THREADED_MIN, threads=1):
+            assert _blas_threads() == outside
+        assert _blas_threads() == outside  # restored on leaving
+    assert set(outside.values()) == {1}
+
+
+def test_products_give_the_same_numbers_on_two_threads():
+    """A threaded product may sum in another order: equal to round-off, not bitwise."""
+    from fe.contact.newton import sparse_product
+
+    rng = np.random.default_rng(3)
+    n = 1200  # (3 n)² entries > PRODUCT_THREADED_MIN
+    W = rng.standard_normal((3 * n, 3 * n))
+    W = 0.5 * (W + W.T)
+    x = np.zeros((n, 3))
+    x[rng.choice(n, n // 2, replace=False)] = rng.standard_normal((n // 2, 3))
+    np.testing.assert_allclose(sparse_product(W, x, threads=2), W @ x.ravel(), atol=1e-10)
+    np.testing.assert_allclose(sparse_product(W, x, threads=1), W @ x.ravel(), atol=1e-10)
+
+
 def _counted_sums(monkeypatch, W):
     """Count the passes of ``np.sum`` over ``W`` (the fingerprint's)."""
     calls = []
