@@ -379,8 +379,10 @@ def _restricted_inverse(
     pos[free] = np.arange(len(free))
     local = pos[dofs]  # -1 where the DOF is supported (zero displacement)
     active = np.flatnonzero(local >= 0)
-    out = np.zeros((len(dofs), len(dofs)))
     block = inverse_block(K[free][:, free], local[active], factor=factor, block_rhs=BLOCK_RHS)
+    if len(active) == len(dofs):  # no supported DOF: the block is the answer (no 2nd copy)
+        return block
+    out = np.zeros((len(dofs), len(dofs)))
     out[np.ix_(active, active)] = block
     return out
 

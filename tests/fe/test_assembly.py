@@ -229,13 +229,20 @@ def test_pardiso_reports_indefinite_matrix():
 
 
 @pytest.mark.parametrize("backend", BACKENDS, ids=BACKEND_IDS)
-def test_inverse_block_matches_dense_inverse_in_given_order(backend):
+@pytest.mark.parametrize("sort", [False, True], ids=["unsorted", "sorted"])
+@pytest.mark.parametrize("sym_block", [512, 7], ids=["one-block", "blocks-of-7"])
+def test_inverse_block_matches_dense_inverse_in_given_order(backend, sort, sym_block, monkeypatch):
+    import fe.linalg.sparse as linalg_sparse
+
+    monkeypatch.setattr(linalg_sparse, "SYMMETRISE_BLOCK", sym_block)  # ragged last block
     K_ff = _free_block()
-    idx = np.random.default_rng(3).choice(K_ff.shape[0], 40, replace=False)  # unsorted
+    idx = np.random.default_rng(3).choice(K_ff.shape[0], 40, replace=False)
+    idx = np.sort(idx) if sort else idx
     dense = np.linalg.inv(K_ff.toarray())[np.ix_(idx, idx)]
     block = inverse_block(K_ff, idx, backend=backend, block_rhs=16)
     np.testing.assert_allclose(block, dense, rtol=1e-9, atol=1e-12 * np.abs(dense).max())
     np.testing.assert_array_equal(block, block.T)
+    assert block.flags.c_contiguous
 
 
 def test_inverse_block_rejects_repeats_and_indefinite():
