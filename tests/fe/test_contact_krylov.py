@@ -336,3 +336,19 @@ def test_oversolving_safeguard_keeps_the_solution_with_fewer_gmres_iterations():
         np.testing.assert_allclose(b.state.p, a.state.p, atol=1e-8 * np.max(np.abs(a.state.p)))
         np.testing.assert_array_equal(b.state.status, a.state.status)
     assert sum(b.linear_iterations for b in new) < sum(a.linear_iterations for a in ref)
+
+
+def test_systems_below_min_size_are_factorised_at_every_step():
+    """Below ``min_size`` unknowns no base is updated: an LU per step, no GMRES, same forces."""
+    kept = punch_history(ContactSettings(mu=0.3, linear_solver=LinearSolver.KRYLOV))
+    fresh = punch_history(
+        ContactSettings(
+            mu=0.3, linear_solver=LinearSolver.KRYLOV, krylov=KrylovOptions(min_size=10**6)
+        )
+    )
+    assert sum(a.linear_iterations for a in kept) > 0
+    assert sum(b.linear_iterations for b in fresh) == 0
+    assert sum(b.factorizations for b in fresh) == sum(b.iterations for b in fresh)
+    for a, b in zip(kept, fresh, strict=True):
+        np.testing.assert_allclose(b.state.p, a.state.p, atol=1e-9 * np.max(np.abs(a.state.p)))
+        np.testing.assert_array_equal(b.state.status, a.state.status)
