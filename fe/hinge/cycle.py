@@ -213,11 +213,12 @@ level 0, Δr 0.1 mm (a few hundred unknowns) 1.13 / 0.99 / 0.96 / 0.94 s; level 
 def hinge_contact(settings: CycleSettings) -> ContactSettings:
     """The contact settings of the hinge's cycle: ``settings.contact()`` with the working set.
 
-    Open-point elimination (``ContactSettings.working_set``: about half the points are open
-    at any load, and every product of the Newton loop then reads a quarter of ``W``) and
-    float32 Krylov bases from ``HINGE_SINGLE_MIN`` unknowns, kept and updated from
-    ``HINGE_KRYLOV_MIN`` unknowns, and the first increment from
-    rest started at its frictionless solution (``ContactSettings.frictionless_start``).
+    Open-point elimination (``ContactSettings.working_set``: with clearance most points stay
+    open, and the products of the Newton loop read only the rows of those that may close; at
+    zero clearance about half may close, often more than ``fe.contact.working.MAX_FRACTION``,
+    and those increments are solved whole), float32 Krylov bases from ``HINGE_SINGLE_MIN``
+    unknowns, kept and updated from ``HINGE_KRYLOV_MIN`` unknowns, and the first increment
+    from rest started at its frictionless solution (``ContactSettings.frictionless_start``).
     All of them change the path only.
     """
     base = settings.contact()
