@@ -192,10 +192,8 @@ def gather_block(W: FloatArray, idx: npt.NDArray[np.int64]) -> FloatArray:
         The block, shape (b, b), float64.
     """
     out = np.empty((len(idx), len(idx)))
-    breaks = np.flatnonzero(np.diff(idx) != 1) + 1
-    starts = np.concatenate([[0], breaks]).astype(np.int64)
-    ends = np.concatenate([breaks, [len(idx)]]).astype(np.int64)
-    if len(idx) and len(starts) <= GATHER_RUNS:
+    starts, ends = runs(idx)
+    if len(starts) <= GATHER_RUNS:
         first = idx[starts]
         for a, b, i in zip(starts, ends, first, strict=True):
             rows = W[i : i + (b - a)]
@@ -205,6 +203,20 @@ def gather_block(W: FloatArray, idx: npt.NDArray[np.int64]) -> FloatArray:
     for i in range(0, len(idx), GATHER_ROWS):
         np.take(W[idx[i : i + GATHER_ROWS]], idx, axis=1, out=out[i : i + GATHER_ROWS])
     return out
+
+
+def runs(idx: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """Runs of consecutive values in ``idx``: positions ``[starts[k], ends[k])``, (r,) each.
+
+    ``idx[starts[k]:ends[k]]`` is ``idx[starts[k]] + 0, 1, …``; none for an empty ``idx``.
+    """
+    if len(idx) == 0:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty
+    breaks = np.flatnonzero(np.diff(idx) != 1) + 1
+    starts = np.concatenate([[0], breaks]).astype(np.int64)
+    ends = np.concatenate([breaks, [len(idx)]]).astype(np.int64)
+    return starts, ends
 
 
 GATHER_RUNS = 200

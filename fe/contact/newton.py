@@ -17,7 +17,7 @@ from fe.contact.dense import LU_THREADED_MIN as LU_THREADED_MIN
 from fe.contact.dense import Factor as Factor
 from fe.contact.dense import _lu_threads_from_env as _lu_threads_from_env
 from fe.contact.dense import factor_jacobian as factor_jacobian
-from fe.contact.dense import lu_threads, wide
+from fe.contact.dense import lu_threads, runs, wide
 from fe.contact.dense import solve_bordered as solve_bordered
 from fe.contact.law import ContactStatus, CoulombStep, coulomb_step, per_point, slip_frame
 
@@ -176,11 +176,8 @@ def sparse_product(
             out: FloatArray = W @ x.ravel()
         return out
     # W symmetric: W x = Σ_j x_j W[j, :] over the nonzero x_j, run by run.
-    breaks = np.flatnonzero(np.diff(support) != 1) + 1
-    starts = support[np.concatenate([[0], breaks])] if len(support) else support
-    ends = (
-        support[np.concatenate([breaks - 1, [len(support) - 1]])] + 1 if len(support) else support
-    )
+    first, stop = runs(support)
+    starts, ends = support[first], support[stop - 1] + 1
     flat = x.ravel()
     rows = np.zeros(W.shape[1])
     with wide(3 * len(support) * W.shape[1], threads):

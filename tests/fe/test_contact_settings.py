@@ -125,7 +125,7 @@ def test_a_read_only_view_of_a_writeable_array_is_not_frozen(monkeypatch):
     assert len(calls) == 2
 
 
-def test_a_frozen_W_is_still_checked_for_finiteness_once():
+def test_a_frozen_W_is_still_refused_when_not_finite_at_every_call():
     from fe.contact.state import validate_problem
 
     W = np.eye(3)
