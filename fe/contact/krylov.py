@@ -26,8 +26,6 @@ found: every iterate is still accepted on the exact residual ``ρ``.
 
 from __future__ import annotations
 
-import threading
-import weakref
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -40,6 +38,7 @@ from cad.errors import check_range
 from fe.contact.dense import gather_block, lu_solve, wide
 from fe.contact.gmres import gmres
 from fe.contact.law import ContactStatus
+from fe.contact.memo import ArrayMemo
 from fe.contact.newton import (
     Factor,
     Iterate,
@@ -156,8 +155,7 @@ BLOCK_SLACK = 1.25
 iteration costs ``(3 n_b)²``; regathering costs a pass over the rows of the block)."""
 
 
-_WORKSPACES: dict[tuple[int, int], tuple[weakref.ref[FloatArray], Workspace]] = {}
-_LOCK = threading.Lock()
+_WORKSPACES: ArrayMemo[Workspace] = ArrayMemo(per_thread=True)
 
 
 def workspace_for(W: FloatArray, w_sum: float = float("nan")) -> Workspace:
@@ -168,14 +166,7 @@ def workspace_for(W: FloatArray, w_sum: float = float("nan")) -> Workspace:
     gathered ``W`` block enters the Krylov operator, so it is kept only while ``w_sum``
     (``Problem.w_sum``, NaN: unknown) shows that ``W`` did not change in place.
     """
-    key = (id(W), threading.get_ident())
-    with _LOCK:
-        entry = _WORKSPACES.get(key)
-        if entry is not None and entry[0]() is W:
-            ws = entry[1]
-        else:
-            ws = Workspace()
-            _WORKSPACES[key] = (weakref.ref(W, lambda _r: _WORKSPACES.pop(key, None)), ws)
+    ws = _WORKSPACES.setdefault(W, Workspace)
     if ws.w_sum != w_sum:  # W changed in place since the last call (NaN: unknown)
         ws.block, ws.W_block, ws.W_single = None, None, None
     ws.w_sum = w_sum

@@ -5,8 +5,6 @@ Conventions are those of :mod:`fe.contact`.
 
 from __future__ import annotations
 
-import threading
-import weakref
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import NamedTuple
@@ -16,6 +14,7 @@ import numpy.typing as npt
 
 from cad.errors import ParameterError, check_range
 from fe.contact.krylov import KrylovOptions
+from fe.contact.memo import ArrayMemo
 from fe.contact.newton import Problem, evaluate
 
 FloatArray = npt.NDArray[np.float64]
@@ -318,8 +317,7 @@ def validate_problem(
     return Problem(W, w_free, G_arr, e_arr, w_t_prev, 0.0, w_sum, sym)
 
 
-_FINGERPRINTS: dict[int, tuple[weakref.ref[FloatArray], float]] = {}
-_FINGERPRINT_LOCK = threading.Lock()
+_FINGERPRINTS: ArrayMemo[float] = ArrayMemo()
 
 
 def fingerprint(W: FloatArray) -> float:
@@ -334,19 +332,13 @@ def fingerprint(W: FloatArray) -> float:
     its first increment is reused while the array lives.
     """
     frozen = _unwritable(W)
-    key = id(W)
     if frozen:
-        with _FINGERPRINT_LOCK:
-            entry = _FINGERPRINTS.get(key)
-        if entry is not None and entry[0]() is W:
-            return entry[1]
+        kept = _FINGERPRINTS.get(W)
+        if kept is not None:
+            return kept
     w_sum = float(np.sum(W))
     if frozen:
-        with _FINGERPRINT_LOCK:
-            _FINGERPRINTS[key] = (
-                weakref.ref(W, lambda _r: _FINGERPRINTS.pop(key, None)),
-                w_sum,
-            )
+        _FINGERPRINTS.put(W, w_sum)
     return w_sum
 
 
@@ -365,8 +357,7 @@ SYMMETRY_RTOL = 1e-10
 condensed ``W`` is symmetric to round-off; rigid-body sets with friction-dependent
 impulses are not)."""
 
-_SYMMETRY: dict[int, tuple[weakref.ref[FloatArray], float, bool]] = {}
-_SYMMETRY_LOCK = threading.Lock()
+_SYMMETRY: ArrayMemo[tuple[float, bool]] = ArrayMemo()
 
 
 def is_symmetric(W: FloatArray, w_sum: float = float("nan")) -> bool:
@@ -380,11 +371,9 @@ def is_symmetric(W: FloatArray, w_sum: float = float("nan")) -> bool:
         W: Square matrix, shape (n, n), float64.
         w_sum: Sum of its entries.
     """
-    key = id(W)
-    with _SYMMETRY_LOCK:
-        entry = _SYMMETRY.get(key)
-    if entry is not None and entry[0]() is W and entry[1] == w_sum:
-        return entry[2]
+    kept = _SYMMETRY.get(W)
+    if kept is not None and kept[0] == w_sum:  # NaN never equals: unknown, not reused
+        return kept[1]
     n, block, worst, scale = W.shape[0], 512, 0.0, 0.0
     for i in range(0, n, block):
         upper, lower = W[i : i + block, i:], W[i:, i : i + block]
@@ -392,8 +381,7 @@ def is_symmetric(W: FloatArray, w_sum: float = float("nan")) -> bool:
         scale = max(scale, float(np.max(np.abs(upper), initial=0.0)))
         scale = max(scale, float(np.max(np.abs(lower), initial=0.0)))
     symmetric = worst <= SYMMETRY_RTOL * scale
-    with _SYMMETRY_LOCK:
-        _SYMMETRY[key] = (weakref.ref(W, lambda _r: _SYMMETRY.pop(key, None)), w_sum, symmetric)
+    _SYMMETRY.put(W, (w_sum, symmetric))
     return symmetric
 
 

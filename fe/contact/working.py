@@ -23,8 +23,6 @@ it, with its LU — carry over.
 
 from __future__ import annotations
 
-import threading
-import weakref
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -35,6 +33,7 @@ from cad.errors import ConvergenceError
 from fe.contact.dense import gather_block
 from fe.contact.krylov import workspace_for
 from fe.contact.law import ContactStatus
+from fe.contact.memo import ArrayMemo
 from fe.contact.newton import Iterate, Problem, Solved, evaluate, sparse_product
 from fe.contact.state import ContactSettings, ContactState
 
@@ -69,15 +68,13 @@ Newton = Callable[[Problem, Iterate, FloatArray, float, ContactSettings, int, in
 
 
 class _Kept(NamedTuple):
-    ref: weakref.ref[FloatArray]
     w_sum: float
     points: IntArray
     W_sub: FloatArray
     w_sum_sub: float
 
 
-_KEPT: dict[tuple[int, int], _Kept] = {}
-_LOCK = threading.Lock()
+_KEPT: ArrayMemo[_Kept] = ArrayMemo(per_thread=True)
 
 
 def _dofs(points: IntArray) -> IntArray:
@@ -120,12 +117,9 @@ def _restricted(
     ``gap``: the normal gaps ``w_n`` of all points, shape (m,) [mm]; when the set is
     rebuilt, ``HEADROOM`` of extra points with the smallest gaps are taken along.
     """
-    key = (id(prob.W), threading.get_ident())
-    with _LOCK:
-        kept = _KEPT.get(key)
+    kept = _KEPT.get(prob.W)
     if (
         kept is not None
-        and kept.ref() is prob.W
         and kept.w_sum == prob.w_sum
         and len(kept.points) <= max(SLACK * len(points), len(points) + 8)
         and bool(np.all(np.isin(points, kept.points)))
@@ -135,12 +129,9 @@ def _restricted(
     dofs = _dofs(points)
     W_sub = gather_block(prob.W, dofs)
     w_sum_sub = float(np.sum(W_sub))
-    if kept is not None and kept.ref() is prob.W:
+    if kept is not None:
         _carry_base(kept.W_sub, kept.w_sum_sub, kept.points, W_sub, w_sum_sub, points)
-    entry = _Kept(weakref.ref(prob.W, lambda _r: _KEPT.pop(key, None)), prob.w_sum, points,
-                  W_sub, w_sum_sub)  # fmt: skip
-    with _LOCK:
-        _KEPT[key] = entry
+    _KEPT.put(prob.W, _Kept(prob.w_sum, points, W_sub, w_sum_sub))
     return points, W_sub, w_sum_sub
 
 

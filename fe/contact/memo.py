@@ -1,0 +1,88 @@
+"""Values remembered per live array: the caches of :mod:`fe.contact` keyed by ``W``.
+
+Internal to :mod:`fe.contact`. The contact solver sees the same Delassus operator ``W``
+at every increment of a cycle and keeps what it learnt of it (its sum, whether it is
+symmetric, a preconditioner, a working-set block) until the array dies. Keying by
+``id(W)`` alone is unsafe (an id is reused once its array is freed), so every entry
+holds a weak reference that must still point to the array asked about, and the entry
+is dropped when the array dies. Whether ``W`` changed in place is the caller's concern
+(the fingerprint ``Problem.w_sum`` stored with the value).
+
+Example:
+    >>> import numpy as np
+    >>> memo: ArrayMemo[float] = ArrayMemo()
+    >>> W = np.eye(3)
+    >>> memo.put(W, 3.0)
+    >>> memo.get(W), memo.get(np.eye(3)), len(memo)
+    (3.0, None, 1)
+    >>> del W
+    >>> len(memo)
+    0
+"""
+
+from __future__ import annotations
+
+import threading
+import weakref
+from collections.abc import Callable
+from typing import Generic, TypeVar
+
+import numpy as np
+
+V = TypeVar("V")
+
+
+class ArrayMemo(Generic[V]):
+    """One value per live array (and per thread if ``per_thread``), thread-safe.
+
+    Args:
+        per_thread: Keep a separate value for every thread (for mutable values such as a
+            preconditioner workspace that two threads must not share).
+    """
+
+    def __init__(self, per_thread: bool = False) -> None:
+        self._per_thread = per_thread
+        self._entries: dict[tuple[int, int], tuple[weakref.ref[np.ndarray], V]] = {}
+        # Reentrant: a collection run while the lock is held may drop another entry.
+        self._lock = threading.RLock()
+
+    def _key(self, a: np.ndarray) -> tuple[int, int]:
+        return (id(a), threading.get_ident() if self._per_thread else 0)
+
+    def get(self, a: np.ndarray) -> V | None:
+        """The value kept for ``a`` (None if there is none)."""
+        with self._lock:
+            entry = self._entries.get(self._key(a))
+        if entry is None or entry[0]() is not a:
+            return None
+        return entry[1]
+
+    def put(self, a: np.ndarray, value: V) -> None:
+        """Keep ``value`` for ``a`` (replacing any earlier one) while ``a`` lives."""
+        key = self._key(a)
+        entry = (weakref.ref(a, lambda r: self._drop(key, r)), value)  # made outside the lock
+        with self._lock:
+            self._entries[key] = entry
+
+    def setdefault(self, a: np.ndarray, make: Callable[[], V]) -> V:
+        """The value kept for ``a``, made by ``make()`` and kept if there is none.
+
+        Not atomic: two threads asking at once for a shared (not ``per_thread``) key may
+        both make a value, and the last one is kept.
+        """
+        value = self.get(a)
+        if value is None:
+            value = make()
+            self.put(a, value)
+        return value
+
+    def _drop(self, key: tuple[int, int], ref: weakref.ref[np.ndarray]) -> None:
+        # Only the entry of the array that died: a new array may already reuse its id.
+        with self._lock:
+            entry = self._entries.get(key)
+            if entry is not None and entry[0] is ref:
+                del self._entries[key]
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._entries)
