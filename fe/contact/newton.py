@@ -231,6 +231,7 @@ class Linear(NamedTuple):
         H: ``(T.T G).T``, shape (k, n_q), float64.
         h: Equilibrium right-hand side, shape (k,), float64 [N].
         keys: Global slot ``3 i + slot`` of every reduced unknown, shape (n_q,), int64.
+        kappa: Slip ratio ``κ`` per closed point (zero unless slipping), shape (c,).
     """
 
     closed: npt.NDArray[np.int64]
@@ -247,6 +248,7 @@ class Linear(NamedTuple):
     H: FloatArray
     h: FloatArray
     keys: npt.NDArray[np.int64]
+    kappa: FloatArray = np.zeros(0)
 
 
 def newton_step(
@@ -373,7 +375,8 @@ def linearise(
     kind = np.where(is_slip, 1, np.where(is_free, 2, 0)).astype(np.int8)
     u_kind = np.where(is_slip[:, None], u_c, 0.0)
     keys = 3 * closed[point] + slot
-    return Linear(closed, keep, kind, u_kind, t_loc, T, R, d, s, b, Jalpha, H, h, keys)
+    kap_kind = np.where(is_slip, kap_c, 0.0)
+    return Linear(closed, keep, kind, u_kind, t_loc, T, R, d, s, b, Jalpha, H, h, keys, kap_kind)
 
 
 def form_jacobian(

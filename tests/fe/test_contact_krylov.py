@@ -66,6 +66,34 @@ def test_preconditioner_inverts_the_updated_matrix_exactly():
     np.testing.assert_allclose(contact_krylov._cols(ops, pc.qN), J_b[:, pc.qN], atol=1e-13)
 
 
+def test_slip_point_whose_kappa_moved_is_made_exact():
+    """Same status and direction, another slip ratio κ: that point's unknowns are changed
+    (exact in M) beyond ``kappa_change``, kept from the base below it."""
+    W = random_W(30, 1)
+    prob, it, r = iterate(W, 2)
+    lin = contact_newton.linearise(prob, it, r)
+    slipping = np.flatnonzero(lin.kind == 1)
+    assert len(slipping) >= 2
+    factor = contact_newton.factor_jacobian(dense_j(prob, lin), lin.keys)
+    kappa = lin.kappa.copy()
+    moved, nudged = slipping[0], slipping[1]
+    kappa[moved] = 0.5 if kappa[moved] < 0.25 else kappa[moved] - 0.25
+    kappa[nudged] += 0.01 if kappa[nudged] < 0.5 else -0.01
+    base = contact_krylov.Base(factor, lin.closed, lin.kind, lin.u, kappa)
+    ops = contact_krylov._operators(prob, lin, contact_krylov.Workspace())
+    pc = contact_krylov._precondition(base, lin, ops, KrylovOptions(max_update=1.0))
+    assert pc is not None
+    changed = set(lin.keys[pc.qN] // 3)
+    assert lin.closed[moved] in changed
+    assert lin.closed[nudged] not in changed
+    assert len(changed) == 1
+    off = contact_krylov._precondition(
+        base, lin, ops, KrylovOptions(max_update=1.0, kappa_change=1.0)
+    )
+    assert off is not None
+    assert len(off.qN) == 0
+
+
 def test_gmres_solves_a_nonsymmetric_system_to_its_tolerance():
     rng = np.random.default_rng(0)
     A = np.eye(40) * 4.0 + rng.normal(size=(40, 40))
@@ -85,7 +113,10 @@ def test_krylov_step_equals_the_lu_step(k):
     prob_a, it_a, r = iterate(W, 8, k=k)
     prob_b, it_b, _ = iterate(W, 9, k=k)
     ws = contact_krylov.Workspace()
-    opts = KrylovOptions(max_update=1.0, forcing=1e-12, max_iter=200, turn_cos=-1.0)
+    # Every slip point kept from the base (any turn, any κ): GMRES does the rest.
+    opts = KrylovOptions(
+        max_update=1.0, forcing=1e-12, max_iter=200, turn_cos=-1.0, kappa_change=1.0
+    )
     first = contact_krylov.krylov_step(prob_a, it_a, r, 0.0, ws, opts)  # no base: factorises
     assert first is not None
     assert not first.reused
