@@ -454,29 +454,33 @@ def krylov_step(
     """
     # The closed set is the trial's (no forced points here): gather the block first, so
     # that the right-hand side's W s comes from it.
-    _ensure_block(prob, np.flatnonzero(it.law.status != ContactStatus.OPEN), ws)
+    block = _ensure_block(prob, np.flatnonzero(it.law.status != ContactStatus.OPEN), ws)
     lin = linearise(prob, it, r, w_times=lambda x: _block_product(prob, ws, x, threads))
     n = len(lin.keys)
-    ops = _operators(prob, lin, ws, threads)
     r_bar = float(np.mean(r))
-    if ws.base is not None and not ws.refresh and n >= opts.min_size and n > 0:
-        step = _gmres_step(it, lin, ops, ws, opts, cut, r_bar, tol, refresh_after=True)
-        if step is not None:
-            return step
-    if n >= opts.single_min:
-        if ws.W_single is None:
-            ws.W_single = ops.W_b.astype(np.float32)
-        single = factor_jacobian(
-            form_jacobian(ws.W_single, ops.block, lin), lin.keys, threads, single=True
-        )
-        if single is not None:
-            # A float32 base is a preconditioner only: the step comes from GMRES on the
-            # exact system, where it is exact but for round-off (a few iterations).
-            ws.base, ws.refresh = Base(single, lin.closed, lin.kind, lin.u, lin.kappa), False
-            step = _gmres_step(it, lin, ops, ws, opts, cut, r_bar, tol, refresh_after=False)
+    krylov = ws.base is not None and not ws.refresh and n >= opts.min_size and n > 0
+    if krylov or n >= opts.single_min:
+        ops = _operators(prob, lin, ws, threads)
+        if krylov:
+            step = _gmres_step(it, lin, ops, ws, opts, cut, r_bar, tol, refresh_after=True)
             if step is not None:
-                return step._replace(reused=False)
-    factor = factor_jacobian(form_jacobian(ops.W_b, ops.block, lin), lin.keys, threads)
+                return step
+        if n >= opts.single_min:
+            if ws.W_single is None:
+                ws.W_single = ops.W_b.astype(np.float32)
+            single = factor_jacobian(
+                form_jacobian(ws.W_single, ops.block, lin), lin.keys, threads, single=True
+            )
+            if single is not None:
+                # A float32 base is a preconditioner only: the step comes from GMRES on
+                # the exact system, where it is exact but for round-off (a few iterations).
+                ws.base, ws.refresh = Base(single, lin.closed, lin.kind, lin.u, lin.kappa), False
+                step = _gmres_step(it, lin, ops, ws, opts, cut, r_bar, tol, refresh_after=False)
+                if step is not None:
+                    return step._replace(reused=False)
+    # Direct: J from the W block (the Krylov operators' slices of R and T are not needed).
+    W_b = prob.W if ws.W_block is None else ws.W_block
+    factor = factor_jacobian(form_jacobian(W_b, block, lin), lin.keys, threads)
     if factor is None:
         return None
     ws.base, ws.refresh = Base(factor, lin.closed, lin.kind, lin.u, lin.kappa), False
