@@ -248,7 +248,7 @@ class Linear(NamedTuple):
     H: FloatArray
     h: FloatArray
     keys: npt.NDArray[np.int64]
-    kappa: FloatArray = np.zeros(0)
+    kappa: FloatArray
 
 
 def newton_step(
