@@ -84,9 +84,9 @@ class KrylovOptions:
             diagonal moved, which the base cannot know. Default hinge, level 0 / level 1,
             Δr 0 with 1 (off) and 0.1: GMRES iterations 1 457 / 1 938 → 1 089 / 1 230,
             refactorisations after slow solves (``refresh_iter``) 41 / 62 → 20 / 28,
-            contact phase 4.11 / 64.0 → 3.69 / 60.8 s (single runs); level 1, Δr 0.1 mm
-            2 341 → 2 190 GMRES iterations, time unchanged (4.1 s). 0.03 and 0.3 at level 0:
-            within noise of 0.1.
+            contact phase at level 1 64.0–65.8 → 60.8–63.0 s (three alternating pairs),
+            level 0 4.11 → 3.69 s; level 1, Δr 0.1 mm 2 341 → 2 190 GMRES iterations, time
+            unchanged (4.1 s). 0.03 and 0.3 at level 0: within noise of 0.1.
         min_size: Smaller systems are always factorised (dense LU is cheap there).
         single_min: Reduced systems of at least this many unknowns get a float32 LU as
             their base (half the time of float64; it is a preconditioner, the steps
