@@ -123,14 +123,14 @@ class Base(NamedTuple):
         closed: Closed points of that layout, shape (c₀,), int64.
         kind: 0 stick, 1 slip, 2 frictionless per closed point, shape (c₀,), int8.
         u: Slip direction per closed point, shape (c₀, 2), float64.
-        kappa: Slip ratio ``κ`` per closed point, shape (c₀,), float64 (None: unknown).
+        kappa: Slip ratio ``κ`` per closed point, shape (c₀,), float64.
     """
 
     factor: Factor
     closed: IntArray
     kind: npt.NDArray[np.int8]
     u: FloatArray
-    kappa: FloatArray | None = None
+    kappa: FloatArray
 
 
 @dataclass
@@ -343,9 +343,8 @@ def _precondition(base: Base, lin: Linear, ops: _Operators, opts: KrylovOptions)
     common, ia, ib = np.intersect1d(base.closed, lin.closed, return_indices=True)
     same = base.kind[ia] == lin.kind[ib]
     turn = np.sum(base.u[ia] * lin.u[ib], axis=1)
-    steady = turn >= opts.turn_cos
-    if base.kappa is not None and opts.kappa_change < 1.0:
-        steady &= np.abs(base.kappa[ia] - lin.kappa[ib]) <= opts.kappa_change
+    # κ lies in [0, 1): kappa_change = 1 keeps every direction-steady point (off).
+    steady = (turn >= opts.turn_cos) & (np.abs(base.kappa[ia] - lin.kappa[ib]) <= opts.kappa_change)
     same &= (lin.kind[ib] != 1) | steady
     keep_pts = common[same]
     in_new = np.isin(lin.keys // 3, keep_pts)
