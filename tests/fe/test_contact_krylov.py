@@ -348,6 +348,7 @@ def test_block_product_is_w_s_on_the_closed_dofs():
         ({"max_iter": 0}, r"krylov\.max_iter"),
         ({"max_update": -0.1}, r"krylov\.max_update"),
         ({"oversolve": 2.0}, r"krylov\.oversolve must be in \[0, 1\], got 2"),
+        ({"kappa_change": -0.1}, r"krylov\.kappa_change must be in \[0, 1\], got -0\.1"),
     ],
 )
 def test_bad_krylov_option_names_itself(kwargs, match):
