@@ -24,7 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import print_table
 
-SUMMED = ("iterations", "base_lus", "refused", "gathers", "gather_s", "lu_s", "wall_s")
+SUMMED = ("iterations", "settled", "base_lus", "refused", "gathers", "gather_s", "lu_s", "wall_s")
 """Columns summed per kind of increment."""
 
 BIG_LU = 300
@@ -34,6 +34,7 @@ BIG_LU = 300
 def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Run the cycle with counting wrappers; return per-increment rows and the totals."""
     import fe.contact.dense as dense
+    import fe.contact.globalise as globalise
     import fe.contact.krylov as krylov
     import fe.contact.working as working
     import fe.hinge.cycle as cycle
@@ -69,6 +70,15 @@ def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict
         count("gather_s", time.perf_counter() - t0)
         return out
 
+    direction = globalise._direction
+    changes: list[int] = []  # points whose trial status changed, per iteration
+
+    def direction_counted(prob: Any, it: Any, *args: Any, **kwargs: Any) -> Any:
+        step, new = direction(prob, it, *args, **kwargs)
+        changes.append(-1 if new is None else int(np.sum(new.law.status != it.law.status)))
+        return step, new
+
+    globalise._direction = direction_counted
     krylov.factor_jacobian = factor_counted
     krylov._precondition = precondition_counted
     krylov.gather_block = gather_counted
@@ -78,12 +88,19 @@ def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict
 
     def solve_counted(*args: Any, **kwargs: Any) -> Any:
         now.clear()
+        changes.clear()
         t0 = time.perf_counter()
         res = solve(*args, **kwargs)
+        settled = 0
+        for changed in reversed(changes):
+            if changed != 0:
+                break
+            settled += 1
         rows.append(
             {
                 "force_N": float(-kwargs["e"][cycle.GRIP]),
                 "iterations": res.iterations,
+                "settled": settled,
                 "base_lus": int(now.get("base_lus", 0)),
                 "lu_s": now.get("lu_s", 0.0),
                 "refused": int(now.get("refused", 0)),
@@ -127,8 +144,8 @@ if __name__ == "__main__":
     level = int(sys.argv[1]) if len(sys.argv) > 1 else 0
     clearance = float(sys.argv[2]) if len(sys.argv) > 2 else 0.0
     rows, totals = profile(level, clearance)
-    cols = ["stage", "force_N", "iterations", "base_lus", "refused", "gathers", "gather_s",
-            "lu_s", "wall_s", "stick", "slip", "open"]  # fmt: skip
+    cols = ["stage", "force_N", "iterations", "settled", "base_lus", "refused", "gathers",
+            "gather_s", "lu_s", "wall_s", "stick", "slip", "open"]  # fmt: skip
     print(
         f"general hinge, level {level}, clearance {clearance} mm, Fg 400 N, mu 0.2, "
         f"{totals['points']} contact points, 1 BLAS thread (large LUs: lu_threads)"
@@ -148,11 +165,13 @@ if __name__ == "__main__":
     all_wall = sum(r["wall_s"] for r in rows)
     for s in summary:
         s["share"] = f"{s['wall_s'] / all_wall:.0%}"
-    print_table(summary, ["kind", "increments", "iterations", "base_lus", "refused", "gathers",
-                          "gather_s", "lu_s", "wall_s", "share"])  # fmt: skip
+    print_table(summary, ["kind", "increments", "iterations", "settled", "base_lus", "refused",
+                          "gathers", "gather_s", "lu_s", "wall_s", "share"])  # fmt: skip
     its = np.array([r["iterations"] for r in rows if r["kind"] == "transition"])
+    settled = sum(r["settled"] for r in rows if r["kind"] == "transition")
     print(
         f"transition increments: {len(its)}, iterations per increment median {np.median(its):g}, "
-        f"max {its.max() if len(its) else 0}; contact phase {totals['contact_s']:.3g} s; "
-        f"eta {totals['eta']:.10g}"
+        f"max {its.max() if len(its) else 0}, settled {settled} of {its.sum()} "
+        f"({settled / max(its.sum(), 1):.0%}: no status changed in them); contact phase "
+        f"{totals['contact_s']:.3g} s; eta {totals['eta']:.10g}"
     )
