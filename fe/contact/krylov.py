@@ -236,8 +236,20 @@ def _block_product(
     return out
 
 
-def _operators(prob: Problem, lin: Linear, ws: Workspace, threads: int | None = None) -> _Operators:
-    block = _ensure_block(prob, lin.closed, ws)
+def _operators(
+    prob: Problem,
+    lin: Linear,
+    ws: Workspace,
+    threads: int | None = None,
+    block: IntArray | None = None,
+) -> _Operators:
+    """The Krylov operators of ``lin`` on ``ws``'s ``W`` block.
+
+    ``block``: what :func:`_ensure_block` returned for ``lin.closed`` on this ``ws`` (None:
+    ensured here).
+    """
+    if block is None:
+        block = _ensure_block(prob, lin.closed, ws)
     W_b = prob.W if ws.W_block is None else ws.W_block
     dofs = (3 * block[:, None] + np.arange(3)).ravel()
     if len(dofs) == prob.W.shape[0]:
@@ -459,7 +471,7 @@ def krylov_step(
     r_bar = float(np.mean(r))
     krylov = ws.base is not None and not ws.refresh and n >= opts.min_size and n > 0
     if krylov or n >= opts.single_min:
-        ops = _operators(prob, lin, ws, threads)
+        ops = _operators(prob, lin, ws, threads, block)
         if krylov:
             step = _gmres_step(it, lin, ops, ws, opts, cut, r_bar, tol, refresh_after=True)
             if step is not None:
