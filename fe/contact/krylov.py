@@ -496,7 +496,7 @@ def krylov_step(
         return None
     ws.base, ws.refresh = Base(factor, lin.closed, lin.kind, lin.u, lin.kappa), False
     dq, alpha_new = solve_bordered(factor, lin.Jalpha, lin.H, lin.b, lin.h, cut)
-    return Step(lin.s + (lin.T @ dq).reshape(-1, 3), alpha_new, factor, False)
+    return Step(lin.expand(dq), alpha_new, factor, False)
 
 
 def _gmres_step(
@@ -547,5 +547,5 @@ def _gmres_step(
     if refresh_after:
         ws.refresh = sol.iterations > opts.refresh_iter
     dq, alpha_new = sol.z[:n], it.alpha + sol.z[n:]
-    step = lin.s + (lin.T @ dq).reshape(-1, 3)
+    step = lin.expand(dq)
     return Step(step, alpha_new, ws.base.factor, True)

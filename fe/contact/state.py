@@ -14,6 +14,7 @@ import numpy.typing as npt
 
 from cad.errors import ParameterError, check_range
 from fe.contact.krylov import KrylovOptions
+from fe.contact.law import coulomb_step
 from fe.contact.memo import ArrayMemo
 from fe.contact.newton import Problem, evaluate
 
@@ -432,7 +433,7 @@ def complementarity(
     r = settings.r_scale / np.diagonal(prob.W).reshape(m, 3).mean(axis=1)
     a = np.zeros(k) if alpha is None else np.asarray(alpha, dtype=np.float64)
     it = evaluate(prob, np.asarray(p, dtype=np.float64), a, r)
-    D = it.law.tangent  # (m, 3, 3)
+    D = coulomb_step(it.g, it.p, prob.mu, r).tangent  # (m, 3, 3)
     jac = np.zeros((3 * m, 3 * m))
     rows = np.arange(3 * m).reshape(m, 3)
     jac[rows[:, :, None], rows[:, None, :]] = np.eye(3) - D

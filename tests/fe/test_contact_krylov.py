@@ -185,11 +185,38 @@ def test_default_is_the_krylov_path():
     assert contact.LinearSolver.LU.value == "lu"
 
 
+def test_linear_blocks_agree_with_its_sparse_operators():
+    """The blockwise R G, (Tᵀ G)ᵀ, R W s and T dq + s of ``linearise`` equal the products
+    with its sparse T and R (assembled separately from the same 3×3 blocks)."""
+    W = random_W(20, 8)
+    prob, it, r = iterate(W, 9, k=4)
+    forced = np.zeros(len(prob.w_free), dtype=bool)
+    forced[::2] = True  # open ones among them are closed frictionless
+    lin = contact_newton.linearise(prob, it, r, forced)
+    assert set(lin.kind.tolist()) == {0, 1, 2}
+    np.testing.assert_allclose(lin.Jalpha, lin.R @ prob.G, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(lin.H, (lin.T.T @ prob.G).T, rtol=0, atol=1e-12)
+    own = -it.g[lin.closed]
+    own_rows = own[lin.keep]
+    slip_row = (np.cumsum(lin.keep.ravel()) - 1).reshape(-1, 3)[lin.kind == 1, 1]
+    b_ref = -lin.R @ (W @ lin.s.ravel()) + lin.Jalpha @ it.alpha
+    rest = np.setdiff1d(np.arange(len(lin.keys)), slip_row)  # slip rows' own target differs
+    np.testing.assert_allclose(lin.b[rest], (own_rows + b_ref)[rest], rtol=0, atol=1e-12)
+    dq = np.random.default_rng(10).normal(size=len(lin.keys))
+    np.testing.assert_allclose(
+        lin.expand(dq), lin.s + (lin.T @ dq).reshape(-1, 3), rtol=0, atol=1e-13
+    )
+
+
+@pytest.mark.parametrize("path", ["blocks", "sparse"])
 @pytest.mark.parametrize("block_kind", ["all", "closed", "superset"])
 @pytest.mark.parametrize("symmetric", [True, False], ids=["symmetric", "general"])
-def test_form_jacobian_by_row_gathers_equals_r_w_t(block_kind, symmetric, monkeypatch):
-    """The chunked row-gather J equals R W T + diag(d) for any block holding the closed set."""
+def test_form_jacobian_equals_r_w_t(path, block_kind, symmetric, monkeypatch):
+    """Both ways of forming J (3×3 blocks; chunked row gathers of sparse T) equal R W T +
+    diag(d) for any block holding the closed set."""
     monkeypatch.setattr(contact_newton, "_CHUNK", 7)  # several chunks, a ragged last one
+    if path == "sparse":
+        monkeypatch.setattr(contact_newton, "LOCAL_MAX", 0)
     W = random_W(25, 5)
     prob, it, r = iterate(W, 6)
     forced = np.zeros(len(prob.w_free), dtype=bool)
