@@ -442,14 +442,15 @@ def form_jacobian(
     if n_q == 0:
         return np.zeros((0, 0), dtype=dtype)
     if n_q <= LOCAL_MAX:
-        # R W as (c, 3) row blocks, then (R W T)ᵀ = Tᵀ (R W)ᵀ by the same batched product.
+        # R W by (3, 3) row blocks, kept rows only; then (R W T)ᵀ = Tᵀ (R W)ᵀ the same way.
         c = len(lin.closed)
-        W_cc = W_block if len(cols) == W_block.shape[0] else W_block[cols][:, cols]
-        RW = np.matmul(lin.r_loc.astype(dtype), W_cc.reshape(c, 3, 3 * c)).reshape(3 * c, -1)
-        RWT_t = np.matmul(lin.t_loc.transpose(0, 2, 1).astype(dtype), RW.T.reshape(c, 3, -1))
         kept = np.flatnonzero(lin.keep.ravel())
+        W_cc = W_block if len(cols) == W_block.shape[0] else W_block[cols][:, cols]
+        RW = np.matmul(lin.r_loc.astype(dtype), W_cc.reshape(c, 3, 3 * c))
+        RW_k = RW.reshape(3 * c, 3 * c)[kept]  # (n_q, 3c)
+        J_t = np.matmul(lin.t_loc.transpose(0, 2, 1).astype(dtype), RW_k.T.reshape(c, 3, -1))
         J_local: npt.NDArray[np.floating[Any]] = np.ascontiguousarray(
-            RWT_t.reshape(3 * c, 3 * c)[np.ix_(kept, kept)].T
+            J_t.reshape(3 * c, n_q)[kept].T
         )
         J_local[np.diag_indices_from(J_local)] += lin.d
         return J_local
