@@ -219,6 +219,18 @@ def runs(idx: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray
     return starts, ends
 
 
+def is_subset(a: npt.NDArray[np.int64], b: npt.NDArray[np.int64]) -> bool:
+    """Whether every value of ``a`` is in ``b``, both sorted ascending, shapes (n_a,), (n_b,).
+
+    A binary search per value of ``a`` (``np.isin`` sorts both: 0.1 ms at a few hundred
+    points, paid per Newton step and per increment).
+    """
+    if len(a) == 0:
+        return True
+    at = np.searchsorted(b, a)
+    return bool(at[-1] < len(b)) and bool(np.array_equal(b[np.minimum(at, len(b) - 1)], a))
+
+
 GATHER_RUNS = 200
 """Index sets of at most this many runs are gathered as rectangles (``runs²`` copies)."""
 

@@ -35,7 +35,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from cad.errors import check_range
-from fe.contact.dense import gather_block, lu_solve, wide
+from fe.contact.dense import gather_block, is_subset, lu_solve, wide
 from fe.contact.gmres import gmres
 from fe.contact.law import ContactStatus
 from fe.contact.memo import ArrayMemo
@@ -261,7 +261,7 @@ def _block_fits(block: IntArray, closed: IntArray, m: int) -> bool:
     """Whether a kept block holds the closed points with at most ``BLOCK_SLACK`` slack."""
     if len(block) > max(BLOCK_SLACK * len(closed), 0.8 * m):
         return False
-    return bool(np.all(np.isin(closed, block)))
+    return is_subset(closed, block)
 
 
 def _apply(ops: _Operators, X: FloatArray) -> FloatArray:

@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ConvergenceError
-from fe.contact.dense import gather_block
+from fe.contact.dense import gather_block, is_subset
 from fe.contact.krylov import workspace_for
 from fe.contact.law import ContactStatus
 from fe.contact.memo import ArrayMemo
@@ -122,7 +122,7 @@ def _restricted(
         kept is not None
         and kept.w_sum == prob.w_sum
         and len(kept.points) <= max(SLACK * len(points), len(points) + 8)
-        and bool(np.all(np.isin(points, kept.points)))
+        and is_subset(points, kept.points)
     ):
         return kept.points, kept.W_sub, kept.w_sum_sub
     points = _with_headroom(points, gap)

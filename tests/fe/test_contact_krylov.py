@@ -265,6 +265,21 @@ def test_gather_block_is_the_ix_block(monkeypatch, max_runs):
     assert out.flags.c_contiguous
 
 
+def test_is_subset_agrees_with_isin():
+    """The sorted-array subset test the block and working-set caches use, against np.isin."""
+    from fe.contact import dense as contact_dense
+
+    rng = np.random.default_rng(3)
+    empty = np.zeros(0, dtype=np.int64)
+    assert contact_dense.is_subset(empty, empty)
+    assert not contact_dense.is_subset(np.array([2]), empty)
+    for _ in range(300):
+        b = np.unique(rng.integers(0, 40, size=rng.integers(0, 25)))
+        a = np.unique(rng.choice(np.arange(45), size=rng.integers(0, 8), replace=False))
+        assert contact_dense.is_subset(a, b) == bool(np.all(np.isin(a, b))), (a, b)
+        assert contact_dense.is_subset(b[::2], b)
+
+
 def test_sparse_product_reads_runs_of_rows():
     """Support in runs of consecutive points, at both ends and alone: still W x."""
     W = random_W(30, 7)
