@@ -242,9 +242,11 @@ def test_form_jacobian_equals_r_w_t(path, block_kind, symmetric, monkeypatch):
     assert J.flags.c_contiguous
 
 
+@pytest.mark.parametrize("plain_max", [0, 600])  # by runs of rows; plain below 600 rows
 @pytest.mark.parametrize("n_nonzero", [0, 1, 4, 20])
-def test_sparse_product_equals_the_full_product(n_nonzero):
+def test_sparse_product_equals_the_full_product(n_nonzero, plain_max, monkeypatch):
     """W x from the rows of x's support (or the full product when x is dense) is W x."""
+    monkeypatch.setattr(contact_newton, "PLAIN_PRODUCT_MAX", plain_max)
     W = random_W(30, 7)
     rng = np.random.default_rng(8)
     x = np.zeros((30, 3))
@@ -280,8 +282,9 @@ def test_is_subset_agrees_with_isin():
         assert contact_dense.is_subset(b[::2], b)
 
 
-def test_sparse_product_reads_runs_of_rows():
+def test_sparse_product_reads_runs_of_rows(monkeypatch):
     """Support in runs of consecutive points, at both ends and alone: still W x."""
+    monkeypatch.setattr(contact_newton, "PLAIN_PRODUCT_MAX", 0)  # 90 rows: by runs
     W = random_W(30, 7)
     x = np.zeros((30, 3))
     x[[0, 1, 2, 7, 12, 13, 14, 15, 29]] = np.random.default_rng(9).normal(size=(9, 3))
