@@ -55,6 +55,10 @@ class SolverError(HingelabError, RuntimeError):
     """A linear solver failed on a matrix it was given (e.g. not positive definite)."""
 
 
+class ResourceError(HingelabError, MemoryError):
+    """A computation would need more memory than the machine has; the message says how much."""
+
+
 class DataError(HingelabError, ValueError):
     """Input data (a table or measurement file) is malformed; the message names file, row, column."""
 

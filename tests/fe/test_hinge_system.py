@@ -99,3 +99,72 @@ def test_low_memory_mode_holds_one_factor_and_recovers_the_same_fields():
     for a, b in zip(one_by_one, batch, strict=True):
         assert np.abs(a - b).max() <= 1e-12 * np.abs(a).max()
     assert np.abs(one_by_one[-1]).max() > 1e-4  # a real field, not zeros
+
+
+def _contact_like(m, b, per_row, rng):
+    """A (3m, b) sparse operator with ``per_row`` entries per row, as C's slave/master parts."""
+    import scipy.sparse as sp
+
+    rows = np.repeat(np.arange(3 * m), per_row)
+    cols = rng.integers(0, b, size=rows.size)
+    return sp.csr_matrix((rng.normal(size=rows.size), (rows, cols)), shape=(3 * m, b))
+
+
+def test_delassus_by_row_blocks_is_the_whole_matrix_formula_and_allocates_one_w(monkeypatch):
+    """W = ½(V + Vᵀ), V = C_s S_s C_sᵀ + C_m S_m C_mᵀ, equals the whole-matrix expression bit
+    for bit, is exactly symmetric, and allocates W and row blocks only (the whole-matrix
+    expression held about four W-sized arrays)."""
+    import tracemalloc
+
+    import fe.hinge.system as hinge_system
+
+    rng = np.random.default_rng(5)
+    m, b_s, b_m = 400, 1100, 700
+    Cs, Cm = _contact_like(m, b_s, 3, rng), _contact_like(m, b_m, 12, rng)
+    A, B = rng.normal(size=(b_s, b_s)), rng.normal(size=(b_m, b_m))
+    S_s, S_m = A @ A.T, B @ B.T
+    V = np.asarray(Cs @ (Cs @ S_s).T) + np.asarray(Cm @ (Cm @ S_m).T)
+    expected = 0.5 * (V + V.T)
+    monkeypatch.setattr(hinge_system, "CONDENSE_ROWS", 50)  # 24 blocks, a ragged last one
+    tracemalloc.start()
+    W = hinge_system.delassus(Cs, S_s, Cm, S_m)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    np.testing.assert_array_equal(W, expected)
+    assert np.array_equal(W, W.T)
+    assert peak < 1.25 * W.nbytes, f"peak {peak / W.nbytes:.2f} W"
+
+
+def test_condensation_that_cannot_fit_is_refused_before_allocating(monkeypatch):
+    """With less memory available than the dense matrices need, condense raises a
+    ResourceError naming the sizes (a zero-clearance level 2 would otherwise be killed
+    minutes later); HINGELAB_MEMORY_CHECK=0 lets it run; kept compliances are not counted."""
+    import fe.hinge.system as hinge_system
+    from cad.errors import ResourceError
+    from fe.hinge.geometry import contact_geometry
+    from fe.hinge.system import build_system, condense, dense_memory_bytes
+
+    mesh, _ = mesh_hinge(make_general_hinge(GeneralHingeParams()), MeshSettings.coarse())
+    system = build_system(mesh)
+    geo = contact_geometry(mesh, {p.name: np.zeros(3) for p in mesh.pairs})
+    b_s, b_m, n = (
+        3 * len(np.unique(geo.slave)),
+        3 * len(np.unique(geo.master_nodes)),
+        3 * len(geo.slave),
+    )
+    need = dense_memory_bytes(b_s, b_m, n)
+    assert need >= 8 * (b_s**2 + b_m**2 + n**2)  # at least the blocks and W themselves
+    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: need - 1)
+    with pytest.raises(
+        ResourceError, match=rf"{n}² entries.*{(need - 1) / 1e9:.1f} GB are available"
+    ):
+        condense(system, geo)
+    assert "compliance" not in system.timings_s  # refused before the first dense solve
+    monkeypatch.setenv("HINGELAB_MEMORY_CHECK", "0")
+    cond = condense(system, geo)
+    assert cond.W.shape == (n, n)
+    monkeypatch.delenv("HINGELAB_MEMORY_CHECK")
+    kept = dense_memory_bytes(b_s, b_m, n, compliance_kept=True)
+    assert kept < need
+    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: kept)
+    condense(system, geo)  # the blocks are kept now: only W and the contact phase count
