@@ -287,6 +287,22 @@ def test_law_tangent_matches_central_differences_with_status_frozen():
     assert {int(s) for s in step.status} == {0, 1, 2}
 
 
+def test_law_without_tangent_returns_the_same_traction_and_status():
+    """The Newton loop's residuals skip the tangent; traction and status must not change,
+    at one μ and at per-point μ (some zero: frictionless slipping)."""
+    rng = np.random.default_rng(12)
+    m = 60
+    gap = rng.normal(size=(m, 3))
+    p = rng.normal(size=(m, 3)) + np.array([0.5, 0.0, 0.0])
+    r = rng.uniform(0.5, 2.0, m)
+    for mu in (0.3, np.where(np.arange(m) % 4 == 0, 0.0, rng.uniform(0.1, 0.6, m))):
+        full, lean = coulomb_step(gap, p, mu, r), coulomb_step(gap, p, mu, r, tangent=False)
+        np.testing.assert_array_equal(lean.status, full.status)
+        np.testing.assert_array_equal(lean.traction, full.traction)
+        assert lean.tangent.shape == (0, 3, 3)
+        assert {int(s) for s in full.status} == {0, 1, 2}
+
+
 def test_complementarity_jacobian_matches_central_differences():
     W, (w1, _) = frictional_case(m=6, seed=4)
     rng = np.random.default_rng(9)
