@@ -459,12 +459,16 @@ def check_dense_memory(
     need = dense_memory_bytes(b_s, b_m, n, compliance_kept=kept)
     if need > available:
         raise ResourceError(
-            f"condensing {m} contact points needs about {need / 1e9:.1f} GB of dense matrices "
+            f"condensing {m} contact points needs about {_size(need)} of dense matrices "
             f"(compliance blocks of {b_s} and {b_m} DOFs, W of {n}² entries), and "
-            f"{available / 1e9:.1f} GB are available: use a coarser mesh (refinement), or "
+            f"{_size(available)} are available: use a coarser mesh (refinement), or "
             f"a clearance with a contact window (CycleSettings.contact_window) so that fewer "
             f"points are condensed; {MEMORY_CHECK_ENV}=0 skips this check"
         )
+
+
+def _size(n_bytes: int) -> str:
+    return f"{n_bytes / 1e9:.1f} GB" if n_bytes >= 1e8 else f"{n_bytes / 1e6:.1f} MB"
 
 
 CONDENSE_ROWS = 512

@@ -156,7 +156,7 @@ def test_condensation_that_cannot_fit_is_refused_before_allocating(monkeypatch):
     assert need >= 8 * (b_s**2 + b_m**2 + n**2)  # at least the blocks and W themselves
     monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: need - 1)
     with pytest.raises(
-        ResourceError, match=rf"{n}² entries.*{(need - 1) / 1e9:.1f} GB are available"
+        ResourceError, match=rf"{n}² entries.*{(need - 1) / 1e6:.1f} MB are available"
     ):
         condense(system, geo)
     assert "compliance" not in system.timings_s  # refused before the first dense solve
