@@ -40,13 +40,14 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from enum import Enum
 from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
-from cad.errors import MeshQualityError, ResourceError
+from cad.errors import MeshQualityError, ParameterError, ResourceError
 from cad.model import PairKind, SurfacePair
 from cad.surfaces import Cylinder
 from fe.assembly import Factorization, assemble_stiffness, dofs_of, inverse_block
@@ -401,7 +402,11 @@ def _columns(C: sp.csr_matrix, nodes: IntArray) -> sp.csr_matrix:
 
 
 MEMORY_CHECK_ENV = "HINGELAB_MEMORY_CHECK"
-"""Set to ``0`` to skip :func:`check_dense_memory` (e.g. with swap the estimate ignores)."""
+"""Set to ``0`` to skip the memory check of :func:`condense_path` (e.g. with swap the
+estimate ignores)."""
+
+CONDENSE_ENV = "HINGELAB_CONDENSE"
+"""Set to ``compliance`` or ``solves`` to force a :class:`CondensePath`."""
 
 
 def available_memory_bytes() -> int | None:
@@ -437,34 +442,85 @@ def dense_memory_bytes(b_s: int, b_m: int, n: int, *, compliance_kept: bool = Fa
     return max(schur, condense)
 
 
-def check_dense_memory(
-    system: HingeSystem, slave_nodes: IntArray, master_nodes: IntArray, m: int
-) -> None:
-    """Raise before allocating the condensation's dense matrices if they cannot fit.
+def solves_memory_bytes(b_m: int, n: int) -> int:
+    """Peak of the dense matrices of the condensation by pin solves (:func:`pin_delassus`).
 
-    A zero-clearance level 2 needs a 36 000² ``W`` and compliance blocks of that size: on a
-    24 GB machine the process would be killed minutes later with nothing said. Skipped
-    when ``HINGELAB_MEMORY_CHECK=0`` or the available memory is unknown.
+    The master block's Schur complement and PARDISO's copy of it; then ``W`` and the master
+    block while ``W`` is formed; then ``W`` and the contact phase's ``0.6 W`` (the master
+    block is released with the condensation). No slave block is formed.
+
+    Args:
+        b_m: Master compliance DOFs.
+        n: Rows of ``W`` (three per contact point).
+    """
+    return 8 * max(2 * b_m**2, b_m**2 + n**2, int(1.6 * n**2))
+
+
+class CondensePath(Enum):
+    """How :func:`condense` forms ``W``.
+
+    COMPLIANCE: from the nodal compliance blocks of the slave (pin) and master (lug)
+    nodes, each a Schur complement, kept by the system for every later configuration of
+    the same nodes (fastest; needs both blocks and ``W`` in memory at once).
+    SOLVES: the pin's part ``C_p K_p⁻¹ C_pᵀ`` by block solves with the pin's sparse factor
+    (:func:`pin_delassus`), written straight into ``W``, and only the master block as a
+    Schur complement, released afterwards: about half the memory of COMPLIANCE at zero
+    clearance, where the slave block is as large as ``W``, and slower.
+    """
+
+    COMPLIANCE = "compliance"
+    SOLVES = "solves"
+
+
+def condense_path(
+    system: HingeSystem, slave_nodes: IntArray, master_nodes: IntArray, m: int
+) -> CondensePath:
+    """Choose how to condense, before allocating any dense matrix.
+
+    COMPLIANCE where its matrices fit in the available memory (compliance blocks the
+    system keeps are not counted again), else SOLVES where those fit, else raise.
+    ``HINGELAB_CONDENSE`` (``compliance`` or ``solves``) forces a path;
+    ``HINGELAB_MEMORY_CHECK=0`` or an unknown available memory takes COMPLIANCE unchecked.
 
     Raises:
-        ResourceError: Naming the sizes, the estimate and the memory available.
+        ResourceError: Neither path fits, naming the sizes, the estimates and the memory
+            available.
+        ParameterError: ``HINGELAB_CONDENSE`` names no path.
     """
-    if os.environ.get(MEMORY_CHECK_ENV, "1") == "0":
-        return
-    available = available_memory_bytes()
-    if available is None:
-        return
+    forced = os.environ.get(CONDENSE_ENV)
+    if forced is not None:
+        try:
+            return CondensePath(forced)
+        except ValueError:
+            raise ParameterError(
+                f"{CONDENSE_ENV} = {forced!r}: expected one of {[p.value for p in CondensePath]}"
+            ) from None
     b_s, b_m, n = 3 * len(slave_nodes), 3 * len(master_nodes), 3 * m
+    available = available_memory_bytes()
+    if os.environ.get(MEMORY_CHECK_ENV, "1") == "0" or available is None:
+        return CondensePath.COMPLIANCE
     kept = system.has_compliance(slave_nodes, master_nodes)
     need = dense_memory_bytes(b_s, b_m, n, compliance_kept=kept)
-    if need > available:
-        raise ResourceError(
-            f"condensing {m} contact points needs about {_size(need)} of dense matrices "
-            f"(compliance blocks of {b_s} and {b_m} DOFs, W of {n}² entries), and "
-            f"{_size(available)} are available: use a coarser mesh (refinement), or "
-            f"a clearance with a contact window (CycleSettings.contact_window) so that fewer "
-            f"points are condensed; {MEMORY_CHECK_ENV}=0 skips this check"
+    if need <= available:
+        return CondensePath.COMPLIANCE
+    low = solves_memory_bytes(b_m, n)
+    if low <= available:
+        logger.info(
+            "condensing %d points by pin solves: the compliance blocks would need %s, "
+            "%s are available (this path needs %s)",
+            m,
+            _size(need),
+            _size(available),
+            _size(low),
         )
+        return CondensePath.SOLVES
+    raise ResourceError(
+        f"condensing {m} contact points needs about {_size(need)} of dense matrices "
+        f"(compliance blocks of {b_s} and {b_m} DOFs, W of {n}² entries), or {_size(low)} "
+        f"by pin solves, and {_size(available)} are available: use a coarser mesh "
+        f"(refinement), or a clearance with a contact window (CycleSettings.contact_window) "
+        f"so that fewer points are condensed; {MEMORY_CHECK_ENV}=0 skips this check"
+    )
 
 
 def _size(n_bytes: int) -> str:
@@ -499,7 +555,21 @@ def delassus(
     for i in range(0, n, CONDENSE_ROWS):
         rows = slice(i, min(i + CONDENSE_ROWS, n))
         W[rows] = (Cs @ (Cs[rows] @ S_slave).T).T
-        W[rows] += (Cm @ (Cm[rows] @ S_master).T).T
+    return _symmetrised(_add_congruence(W, Cm, S_master))
+
+
+def _add_congruence(W: FloatArray, C: sp.csr_matrix, S: FloatArray) -> FloatArray:
+    """``W += C S Cᵀ`` in place, by blocks of ``CONDENSE_ROWS`` rows; returns W."""
+    n = W.shape[0]
+    for i in range(0, n, CONDENSE_ROWS):
+        rows = slice(i, min(i + CONDENSE_ROWS, n))
+        W[rows] += (C @ (C[rows] @ S).T).T
+    return W
+
+
+def _symmetrised(W: FloatArray) -> FloatArray:
+    """``W ← ½ (W + Wᵀ)`` in place, by blocks of ``CONDENSE_ROWS`` rows; returns W."""
+    n = W.shape[0]
     for i0 in range(0, n, CONDENSE_ROWS):
         i1 = min(i0 + CONDENSE_ROWS, n)
         mean = 0.5 * (W[i0:i1, i0:] + W[i0:, i0:i1].T)
@@ -508,13 +578,58 @@ def delassus(
     return W
 
 
+def pin_delassus(system: HingeSystem, C: sp.csr_matrix, master_nodes: IntArray) -> FloatArray:
+    """``W`` with its pin part ``C_p K_p⁻¹ C_pᵀ`` from block solves (``CondensePath.SOLVES``).
+
+    Blocks of ``BLOCK_RHS`` rows of ``C_p`` (the contact operator on the pin's free DOFs)
+    are solved with the pin's sparse factor and multiplied back into rows of ``W``; the
+    lugs' part comes from the master nodes' compliance as in :func:`delassus`. No
+    compliance block of the pin's nodes exists at any time (at zero clearance it is as
+    large as ``W``). The same matrix as :func:`delassus` to round-off.
+
+    Args:
+        system: The factorised hinge (the pin's factor is made here if needed, and
+            released after use in ``low_memory`` mode).
+        C: Contact operator, shape (3m, n_dof).
+        master_nodes: Sorted lug nodes the points use, shape (n_m,).
+
+    Returns:
+        The Delassus operator, shape (3m, 3m), float64 [mm/N], exactly symmetric.
+    """
+    t0 = time.perf_counter()
+    S_master = _restricted_inverse(
+        system.K, lambda: system.lug_factor, system.lug_free, dofs_of(master_nodes)
+    )
+    Cp = sp.csr_matrix(C[:, system.pin_free])
+    CpT = sp.csc_matrix(Cp.T)
+    n = C.shape[0]
+    W = np.empty((n, n))
+    factor = system.pin_factor
+    for i in range(0, n, BLOCK_RHS):
+        rows = slice(i, min(i + BLOCK_RHS, n))
+        W[rows] = np.asarray(Cp @ factor.solve(CpT[:, rows].toarray())).T
+    del factor
+    if system.low_memory:
+        system._factors.pop("pin", None)
+    system.timings_s["compliance"] = (
+        system.timings_s.get("compliance", 0.0) + time.perf_counter() - t0
+    )
+    Cm = _columns(C, master_nodes)
+    return _symmetrised(_add_congruence(W, Cm, S_master))
+
+
 def condense(
     system: HingeSystem, geo: ContactGeometry, excluded: ContactGeometry | None = None
 ) -> Condensed:
     """Condense the hinge on the contact points of a configuration.
 
     ``W = C_s S_slave C_sᵀ + C_m S_master C_mᵀ`` with the nodal compliances of the nodes
-    the points use (computed once per node set) and this configuration's local operators.
+    the points use (computed once per node set) and this configuration's local operators;
+    where those blocks cannot fit in memory, the pin's part by solves instead
+    (:func:`condense_path`, :func:`pin_delassus`).
+
+    Raises:
+        ResourceError: If neither way of forming ``W`` fits in the available memory.
 
     Args:
         system: The factorised hinge.
@@ -523,11 +638,18 @@ def condense(
     """
     slave_nodes = np.unique(geo.slave)
     master_nodes = np.unique(geo.master_nodes)
-    check_dense_memory(system, slave_nodes, master_nodes, len(geo.slave))
-    S_slave, S_master = system.compliance(slave_nodes, master_nodes)
-    t1 = time.perf_counter()
-    C = contact_operator(geo, system.n_dof)
-    W = delassus(_columns(C, slave_nodes), S_slave, _columns(C, master_nodes), S_master)
+    path = condense_path(system, slave_nodes, master_nodes, len(geo.slave))
+    if path is CondensePath.COMPLIANCE:
+        S_slave, S_master = system.compliance(slave_nodes, master_nodes)
+        t1 = time.perf_counter()
+        C = contact_operator(geo, system.n_dof)
+        W = delassus(_columns(C, slave_nodes), S_slave, _columns(C, master_nodes), S_master)
+    else:  # the solves' time counts as compliance, as the blocks' would
+        C = contact_operator(geo, system.n_dof)
+        before = system.timings_s.get("compliance", 0.0)
+        t1 = time.perf_counter()
+        W = pin_delassus(system, C, master_nodes)
+        t1 += system.timings_s["compliance"] - before
     W.setflags(write=False)  # constant: the contact solver then checks it once per cycle
     G = np.column_stack([C @ system.pin_R, C @ system.u_grip])
     w0 = np.column_stack([geo.g0, np.zeros((len(geo.g0), 2))])

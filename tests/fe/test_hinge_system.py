@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cad.errors import ParameterError
 from cad.general import GeneralHingeParams, make_general_hinge
 from cad.surfaces import Cylinder
 from fe.hinge.geometry import closest_point, contact_geometry
@@ -135,36 +136,91 @@ def test_delassus_by_row_blocks_is_the_whole_matrix_formula_and_allocates_one_w(
     assert peak < 1.25 * W.nbytes, f"peak {peak / W.nbytes:.2f} W"
 
 
-def test_condensation_that_cannot_fit_is_refused_before_allocating(monkeypatch):
-    """With less memory available than the dense matrices need, condense raises a
-    ResourceError naming the sizes (a zero-clearance level 2 would otherwise be killed
-    minutes later); HINGELAB_MEMORY_CHECK=0 lets it run; kept compliances are not counted."""
-    import fe.hinge.system as hinge_system
-    from cad.errors import ResourceError
-    from fe.hinge.geometry import contact_geometry
-    from fe.hinge.system import build_system, condense, dense_memory_bytes
-
+@pytest.fixture(scope="module")
+def coarse_zero_clearance():
+    """The coarse general hinge and its zero-clearance contact points."""
     mesh, _ = mesh_hinge(make_general_hinge(GeneralHingeParams()), MeshSettings.coarse())
-    system = build_system(mesh)
     geo = contact_geometry(mesh, {p.name: np.zeros(3) for p in mesh.pairs})
-    b_s, b_m, n = (
+    sizes = (
         3 * len(np.unique(geo.slave)),
         3 * len(np.unique(geo.master_nodes)),
         3 * len(geo.slave),
     )
-    need = dense_memory_bytes(b_s, b_m, n)
+    return mesh, geo, sizes
+
+
+def test_condensation_by_pin_solves_is_the_compliance_condensation(
+    monkeypatch, coarse_zero_clearance
+):
+    """W with its pin part from block solves with the pin's factor equals W from the nodal
+    compliance blocks to round-off, is exactly symmetric, and leaves no compliance block
+    in the system (what lets a zero-clearance level 2 fit); the pin factor is released in
+    low-memory mode."""
+    import fe.hinge.system as hinge_system
+    from fe.hinge.system import build_system, condense
+
+    mesh, geo, _ = coarse_zero_clearance
+    reference = condense(build_system(mesh), geo).W
+    monkeypatch.setenv("HINGELAB_CONDENSE", "solves")
+    monkeypatch.setattr(hinge_system, "BLOCK_RHS", 100)  # several blocks, a ragged last one
+    system = build_system(mesh)
+    system.low_memory = True
+    cond = condense(system, geo)
+    assert np.abs(cond.W - reference).max() <= 1e-11 * np.abs(reference).max()
+    assert np.array_equal(cond.W, cond.W.T)
+    assert not system.has_compliance(np.unique(geo.slave), np.unique(geo.master_nodes))
+    assert "pin" not in system._factors
+    assert system.timings_s["compliance"] > 0.0
+    monkeypatch.setenv("HINGELAB_CONDENSE", "schur")
+    with pytest.raises(ParameterError, match=r"HINGELAB_CONDENSE = 'schur'.*'solves'"):
+        condense(system, geo)
+
+
+def test_condensation_takes_the_path_that_fits_or_refuses_before_allocating(
+    monkeypatch, coarse_zero_clearance
+):
+    """The compliance blocks where they fit; the pin solves where only those fit; else a
+    ResourceError naming the sizes and both estimates before the first dense solve (a
+    zero-clearance level 2 would otherwise be killed minutes later). HINGELAB_MEMORY_CHECK=0
+    lets it run; kept compliances are not counted."""
+    import fe.hinge.system as hinge_system
+    from cad.errors import ResourceError
+    from fe.hinge.system import (
+        CondensePath,
+        build_system,
+        condense,
+        condense_path,
+        dense_memory_bytes,
+        solves_memory_bytes,
+    )
+
+    mesh, geo, (b_s, b_m, n) = coarse_zero_clearance
+    system = build_system(mesh)
+    nodes = (np.unique(geo.slave), np.unique(geo.master_nodes), len(geo.slave))
+    need, low = dense_memory_bytes(b_s, b_m, n), solves_memory_bytes(b_m, n)
     assert need >= 8 * (b_s**2 + b_m**2 + n**2)  # at least the blocks and W themselves
-    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: need - 1)
+    assert 8 * n**2 <= low < need  # at zero clearance the slave block is W's size
+    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: low - 1)
     with pytest.raises(
-        ResourceError, match=rf"{n}² entries.*{(need - 1) / 1e6:.1f} MB are available"
+        ResourceError,
+        match=rf"{n}² entries.*or {low / 1e6:.1f} MB by pin solves.*{(low - 1) / 1e6:.1f} MB are",
     ):
         condense(system, geo)
     assert "compliance" not in system.timings_s  # refused before the first dense solve
+    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: need - 1)
+    assert condense_path(system, *nodes) is CondensePath.SOLVES
+    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: need)
+    assert condense_path(system, *nodes) is CondensePath.COMPLIANCE
+    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: low - 1)
     monkeypatch.setenv("HINGELAB_MEMORY_CHECK", "0")
+    assert condense_path(system, *nodes) is CondensePath.COMPLIANCE
     cond = condense(system, geo)
     assert cond.W.shape == (n, n)
     monkeypatch.delenv("HINGELAB_MEMORY_CHECK")
     kept = dense_memory_bytes(b_s, b_m, n, compliance_kept=True)
     assert kept < need
     monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: kept)
-    condense(system, geo)  # the blocks are kept now: only W and the contact phase count
+    assert condense_path(system, *nodes) is CondensePath.COMPLIANCE  # blocks kept: W only
+    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: min(kept, low) - 1)
+    with pytest.raises(ResourceError):
+        condense(system, geo)
