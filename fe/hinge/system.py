@@ -421,14 +421,24 @@ def available_memory_bytes() -> int | None:
     return None
 
 
+CONTACT_PHASE_W = 1.6
+"""Peak memory the contact phase adds to a zero-clearance cycle, in units of ``W``'s size.
+
+The closed points' block of ``W``, its float32 copy, the float32 base LU and the next one,
+the working set's block of ``W`` and their Krylov workspaces. Measured (resident-set peak
+over the phase, ``/proc/self/status`` VmHWM reset before it): level 1 1.52 W (1.08 GB on a
+0.71 GB ``W``), level 0 1.86 W (0.10 GB: fixed costs dominate). Level 2 (a 10.2 GB ``W``,
+condensed by pin solves) was killed by the kernel's out-of-memory killer at 24.3 GB in
+increment 43 of 50, above 1.24 W; with 0.6 W, the earlier estimate, it had been let through."""
+
+
 def dense_memory_bytes(b_s: int, b_m: int, n: int, *, compliance_kept: bool = False) -> int:
     """Peak of the dense matrices the condensation of one configuration allocates [bytes].
 
     Compliance blocks not yet kept each take their Schur complement and PARDISO's copy of
     it (the slave block's result is held while the master's is made); then both blocks
-    and ``W`` are held while ``W`` is formed (:func:`delassus`); the contact phase adds the
-    closed points' blocks of ``W`` and their float32 copies and factors, counted as
-    ``0.6 W`` (half the points closed).
+    and ``W`` are held while ``W`` is formed (:func:`delassus`); the contact phase adds
+    ``CONTACT_PHASE_W`` times ``W``.
 
     Args:
         b_s: Slave compliance DOFs.
@@ -438,7 +448,7 @@ def dense_memory_bytes(b_s: int, b_m: int, n: int, *, compliance_kept: bool = Fa
     """
     blocks = 0 if compliance_kept else 8 * (b_s**2 + b_m**2)
     schur = 0 if compliance_kept else 8 * max(2 * b_s**2, b_s**2 + 2 * b_m**2)
-    condense = blocks + 8 * n**2 + int(0.6 * 8 * n**2)
+    condense = blocks + 8 * n**2 + int(CONTACT_PHASE_W * 8 * n**2)
     return max(schur, condense)
 
 
@@ -446,14 +456,15 @@ def solves_memory_bytes(b_m: int, n: int) -> int:
     """Peak of the dense matrices of the condensation by pin solves (:func:`pin_delassus`).
 
     The master block's Schur complement and PARDISO's copy of it; then ``W`` and the master
-    block while ``W`` is formed; then ``W`` and the contact phase's ``0.6 W`` (the master
-    block is released with the condensation). No slave block is formed.
+    block while ``W`` is formed; then ``W`` and the contact phase's ``CONTACT_PHASE_W``
+    times ``W`` (the master block is released with the condensation). No slave block is
+    formed.
 
     Args:
         b_m: Master compliance DOFs.
         n: Rows of ``W`` (three per contact point).
     """
-    return 8 * max(2 * b_m**2, b_m**2 + n**2, int(1.6 * n**2))
+    return 8 * max(2 * b_m**2, b_m**2 + n**2, int((1.0 + CONTACT_PHASE_W) * n**2))
 
 
 class CondensePath(Enum):
