@@ -193,10 +193,14 @@ class HingeSystem:
             for start in range(0, f2.shape[1], RECOVER_BLOCK):
                 cols = slice(start, start + RECOVER_BLOCK)
                 u[free, cols] = factor.solve(f2[free, cols]).reshape(len(free), -1)
-            if self.low_memory:
-                del self._factors[name]
-                del factor
+            del factor
+            self.release_factor(name)
         return u.reshape(f.shape)
+
+    def release_factor(self, name: str) -> None:
+        """Drop the ``name`` part's sparse factor in ``low_memory`` mode (kept otherwise)."""
+        if self.low_memory:
+            self._factors.pop(name, None)
 
     def nodal_compliance(self) -> tuple[FloatArray, FloatArray]:
         """Return the compliances at the slave and master nodes, computed once and kept.
@@ -234,9 +238,7 @@ class HingeSystem:
                     _restricted_inverse(
                         self.K, lambda: self.pin_factor, self.pin_free, dofs_of(slave_nodes)
                     ),
-                    _restricted_inverse(
-                        self.K, lambda: self.lug_factor, self.lug_free, dofs_of(master_nodes)
-                    ),
+                    self.lug_compliance(master_nodes),
                 )
                 if cached is not None:
                     _save_atomic(cached, {"slave": pair[0], "master": pair[1]})
@@ -245,6 +247,12 @@ class HingeSystem:
                 self.timings_s.get("compliance", 0.0) + time.perf_counter() - t0
             )
         return self._compliance[key]
+
+    def lug_compliance(self, master_nodes: IntArray) -> FloatArray:
+        """The lugs' compliance at ``master_nodes`` (sorted), shape (3 n_m, 3 n_m) [mm/N], not kept."""
+        return _restricted_inverse(
+            self.K, lambda: self.lug_factor, self.lug_free, dofs_of(master_nodes)
+        )
 
     def has_compliance(self, slave_nodes: IntArray, master_nodes: IntArray) -> bool:
         """Whether :meth:`compliance` of these nodes is kept in memory (no solve, no read)."""
@@ -607,10 +615,7 @@ def pin_delassus(system: HingeSystem, C: sp.csr_matrix, master_nodes: IntArray) 
     Returns:
         The Delassus operator, shape (3m, 3m), float64 [mm/N], exactly symmetric.
     """
-    t0 = time.perf_counter()
-    S_master = _restricted_inverse(
-        system.K, lambda: system.lug_factor, system.lug_free, dofs_of(master_nodes)
-    )
+    S_master = system.lug_compliance(master_nodes)
     Cp = sp.csr_matrix(C[:, system.pin_free])
     CpT = sp.csc_matrix(Cp.T)
     n = C.shape[0]
@@ -620,13 +625,8 @@ def pin_delassus(system: HingeSystem, C: sp.csr_matrix, master_nodes: IntArray) 
         rows = slice(i, min(i + BLOCK_RHS, n))
         W[rows] = np.asarray(Cp @ factor.solve(CpT[:, rows].toarray())).T
     del factor
-    if system.low_memory:
-        system._factors.pop("pin", None)
-    system.timings_s["compliance"] = (
-        system.timings_s.get("compliance", 0.0) + time.perf_counter() - t0
-    )
-    Cm = _columns(C, master_nodes)
-    return _symmetrised(_add_congruence(W, Cm, S_master))
+    system.release_factor("pin")
+    return _symmetrised(_add_congruence(W, _columns(C, master_nodes), S_master))
 
 
 def condense(
@@ -655,12 +655,12 @@ def condense(
         t1 = time.perf_counter()
         C = contact_operator(geo, system.n_dof)
         W = delassus(_columns(C, slave_nodes), S_slave, _columns(C, master_nodes), S_master)
-    else:  # the solves' time counts as compliance, as the blocks' would
+    else:  # forming W by solves counts as compliance: no blocks to time apart
         C = contact_operator(geo, system.n_dof)
-        before = system.timings_s.get("compliance", 0.0)
-        t1 = time.perf_counter()
+        t0 = time.perf_counter()
         W = pin_delassus(system, C, master_nodes)
-        t1 += system.timings_s["compliance"] - before
+        t1 = time.perf_counter()
+        system.timings_s["compliance"] = system.timings_s.get("compliance", 0.0) + t1 - t0
     W.setflags(write=False)  # constant: the contact solver then checks it once per cycle
     G = np.column_stack([C @ system.pin_R, C @ system.u_grip])
     w0 = np.column_stack([geo.g0, np.zeros((len(geo.g0), 2))])
