@@ -64,6 +64,16 @@ class ArrayMemo(Generic[V]):
         with self._lock:
             self._entries[key] = entry
 
+    def pop(self, a: np.ndarray) -> V | None:
+        """Forget the value kept for ``a`` and return it (None if there is none)."""
+        key = self._key(a)
+        with self._lock:
+            entry = self._entries.get(key)
+            if entry is None or entry[0]() is not a:
+                return None
+            del self._entries[key]
+        return entry[1]
+
     def setdefault(self, a: np.ndarray, make: Callable[[], V]) -> V:
         """The value kept for ``a``, made by ``make()`` and kept if there is none.
 

@@ -21,7 +21,7 @@ from fe.contact.state import (
     LinearSolver,
     validate_problem,
 )
-from fe.contact.working import select_points, solve_on_points
+from fe.contact.working import select_points, solve_on_points, use_whole
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -100,6 +100,7 @@ def solve_increment(
             return _result(prob, state_prev, solved)
     else:
         it = evaluate(prob, p0, a0, r_base)
+    use_whole(prob)  # a kept working set's blocks would live beside the whole W's
     return _result(prob, state_prev, newton(prob, it, r_base, cut, settings, increment))
 
 

@@ -31,7 +31,7 @@ import numpy.typing as npt
 
 from cad.errors import ConvergenceError
 from fe.contact.dense import gather_block, is_subset
-from fe.contact.krylov import workspace_for
+from fe.contact.krylov import Base, release, workspace_for
 from fe.contact.law import ContactStatus
 from fe.contact.memo import ArrayMemo
 from fe.contact.newton import Iterate, Problem, Solved, evaluate, sparse_product
@@ -115,7 +115,10 @@ def _restricted(
     """``W`` on a working set, kept per ``W`` while the set still fits (see module doc).
 
     ``gap``: the normal gaps ``w_n`` of all points, shape (m,) [mm]; when the set is
-    rebuilt, ``HEADROOM`` of extra points with the smallest gaps are taken along.
+    rebuilt, ``HEADROOM`` of extra points with the smallest gaps are taken along. A
+    rebuilt set takes over the Krylov base of the old one, or of the whole ``W``, and
+    that workspace (its ``W`` block and float32 copy) is dropped before the new block
+    is gathered: only one set of blocks of ``W`` lives at a time.
     """
     kept = _KEPT.get(prob.W)
     if (
@@ -125,12 +128,16 @@ def _restricted(
         and is_subset(points, kept.points)
     ):
         return kept.points, kept.W_sub, kept.w_sum_sub
-    points = _with_headroom(points, gap)
-    dofs = _dofs(points)
-    W_sub = gather_block(prob.W, dofs)
-    w_sum_sub = float(np.sum(W_sub))
     if kept is not None:
-        _carry_base(kept.W_sub, kept.w_sum_sub, kept.points, W_sub, w_sum_sub, points)
+        taken = _take_base(kept.W_sub, kept.points)
+        _KEPT.pop(prob.W)
+        del kept  # its W_sub goes with it (callers hold no reference)
+    else:
+        taken = _take_base(prob.W, np.arange(len(prob.w_free), dtype=np.int64))
+    points = _with_headroom(points, gap)
+    W_sub = gather_block(prob.W, _dofs(points))
+    w_sum_sub = float(np.sum(W_sub))
+    _give_base(taken, W_sub, w_sum_sub, points)
     _KEPT.put(prob.W, _Kept(prob.w_sum, points, W_sub, w_sum_sub))
     return points, W_sub, w_sum_sub
 
@@ -149,25 +156,46 @@ def _with_headroom(points: IntArray, gap: FloatArray | None) -> IntArray:
     return np.union1d(points, nearest).astype(np.int64)
 
 
-def _carry_base(
-    W_old: FloatArray,
-    w_sum_old: float,
-    old: IntArray,
-    W_new: FloatArray,
-    w_sum_new: float,
-    new: IntArray,
-) -> None:
-    """Hand the Krylov base LU of the old working set to the new one (renumbered).
+def use_whole(prob: Problem) -> None:
+    """Before a solve on all points: drop the kept working set, handing its base to ``W``.
+
+    The kept ``W_sub`` (up to a quarter of ``W``) and its workspace would otherwise live
+    beside the whole problem's own ``W`` block through that solve.
+    """
+    kept = _KEPT.pop(prob.W)
+    if kept is None:
+        return
+    taken = _take_base(kept.W_sub, kept.points)
+    del kept
+    everything = np.arange(len(prob.w_free), dtype=np.int64)
+    _give_base(taken, prob.W, prob.w_sum, everything)
+
+
+class _Taken(NamedTuple):
+    base: Base
+    points: IntArray
+
+
+def _take_base(W_old: FloatArray, old: IntArray) -> _Taken | None:
+    """Forget ``W_old``'s Krylov workspace, keeping its base LU (on the points ``old``)."""
+    ws = release(W_old)
+    if ws is None or ws.base is None:
+        return None
+    return _Taken(ws.base, old)
+
+
+def _give_base(taken: _Taken | None, W_new: FloatArray, w_sum_new: float, new: IntArray) -> None:
+    """Hand a taken Krylov base LU to the workspace of ``W_new`` (on ``new``), renumbered.
 
     The base belongs to the reduced Jacobian of its closed points; if the new set holds
     them all, only their numbering changes, and monotonically (both sets sorted), so the
     factors keep their unknown order and stay valid. Without this every change of the set
     would cost a factorisation.
     """
-    base = workspace_for(W_old, w_sum_old).base
-    if base is None:
+    if taken is None:
         return
-    closed = old[base.closed]
+    base = taken.base
+    closed = taken.points[base.closed]
     local = np.searchsorted(new, closed)
     if np.any(local >= len(new)) or not np.array_equal(
         new[np.minimum(local, len(new) - 1)], closed
@@ -218,6 +246,7 @@ def solve_on_points(
     for _round in range(ROUNDS):
         points, W_sub, w_sum_sub = _restricted(prob, points, it.w[:, 0])
         sub = _sub_problem(prob, points, W_sub, w_sum_sub)
+        del W_sub  # only the kept set holds it past this round (_restricted may drop it)
         sub_it = evaluate(sub, it.p[points], it.alpha, r_base[points], it.Wp[points])
         try:
             solved = newton(sub, sub_it, r_base[points], cut, settings, increment, budget)
@@ -229,6 +258,8 @@ def solve_on_points(
                 it = evaluate(prob, p, alpha, r_base, sparse_product(prob.W, p).reshape(-1, 3))
             wasted = err.iteration
             break
+        finally:
+            del sub
         budget -= solved.iterations
         done.append(solved)
         p = np.zeros((m, 3))
@@ -248,6 +279,7 @@ def solve_on_points(
             break
     # The whole problem gets a budget of its own: the working set never fails an
     # increment that the whole problem solves (it only costs the rounds' iterations).
+    use_whole(prob)
     done.append(newton(prob, it, r_base, cut, settings, increment, settings.max_iter))
     summed = _summed(done, done[-1].it)
     return summed._replace(iterations=summed.iterations + wasted)

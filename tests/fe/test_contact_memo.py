@@ -75,3 +75,16 @@ def test_symmetry_is_checked_again_when_the_fingerprint_changes():
     W[0, 1] = 0.0
     W[2, 0] = 5.0
     assert not is_symmetric(W, float("nan"))  # unknown fingerprint: never reused
+
+
+def test_pop_forgets_the_value_of_that_array_only():
+    memo: ArrayMemo[str] = ArrayMemo()
+    a, b = np.zeros(2), np.zeros(2)
+    memo.put(a, "a")
+    memo.put(b, "b")
+    assert memo.pop(np.zeros(2)) is None  # equal contents, another array
+    assert memo.pop(a) == "a"
+    assert memo.get(a) is None
+    assert memo.pop(a) is None
+    assert memo.get(b) == "b"
+    assert len(memo) == 1

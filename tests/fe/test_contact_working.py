@@ -149,7 +149,9 @@ def test_a_grown_working_set_keeps_the_base_lu_on_the_same_slots():
     assert base is not None
     assert len(base.factor.keys) > 0
     W_new, s_new = sub(new)
-    contact_working._carry_base(W_old, s_old, old, W_new, s_new, new)
+    taken = contact_working._take_base(W_old, old)
+    assert contact_krylov.release(W_old) is None  # the old workspace is gone
+    contact_working._give_base(taken, W_new, s_new, new)
     carried = contact_krylov.workspace_for(W_new, s_new).base
     assert carried is not None
     assert carried.factor.lu is base.factor.lu
@@ -304,3 +306,57 @@ def test_headroom_spares_gathers_while_the_zone_grows(monkeypatch):
     for a, b in zip(plain, spare, strict=True):
         np.testing.assert_allclose(b.state.p, a.state.p, atol=1e-9 * np.max(np.abs(a.state.p)))
         np.testing.assert_array_equal(b.state.status, a.state.status)
+
+
+def test_only_one_set_of_w_blocks_lives_at_a_time(monkeypatch):
+    """Whole solves and working-set solves alternate; the idle one's blocks are dropped.
+
+    Before a working-set solve the whole ``W``'s workspace (its gathered block, float32
+    copy and base LU) is gone, and before a whole solve the kept working set (its
+    ``W_sub`` and workspace) is gone; the base LU is handed on, not refactorised.
+    """
+    W, G, w_free = pin_in_hole()
+    settings = ContactSettings(mu=0.3, working_set=True, working_margin=1.0)
+    seen = {"sub": 0, "whole": 0, "handed": 0, "into_sub": 0}
+    from fe.contact import solve as contact_solve
+
+    inner = contact_solve.newton
+    last = [""]
+
+    def spy(prob, it, r, cut, s, increment, max_iter=None):
+        if not s.working_set:  # the reference solves
+            return inner(prob, it, r, cut, s, increment, max_iter)
+        kept = contact_working._KEPT.get(W)
+        if prob.W is W:  # the whole problem: no working set kept beside it
+            seen["whole"] += 1
+            assert kept is None
+            ws = contact_krylov._WORKSPACES.get(W)
+            seen["handed"] += last[0] == "sub" and ws is not None and ws.base is not None
+            last[0] = "whole"
+        else:  # a working set: the whole W has no workspace beside it
+            seen["sub"] += 1
+            assert kept is not None
+            assert kept.W_sub is prob.W
+            assert contact_krylov._WORKSPACES.get(W) is None
+            sub_ws = contact_krylov._WORKSPACES.get(prob.W)
+            seen["into_sub"] += (
+                last[0] == "whole" and sub_ws is not None and sub_ws.base is not None
+            )
+            last[0] = "sub"
+        return inner(prob, it, r, cut, s, increment, max_iter)
+
+    monkeypatch.setattr(contact_solve, "newton", spy)
+    # Fewer than MAX_FRACTION closing points first (working set), then a load that
+    # closes most of the ring (whole), then back: both hand-overs happen.
+    loads = [(3.0, 0.0), (4.0, 0.5), (60.0, 0.0), (80.0, 5.0), (4.0, 0.0), (3.0, 1.0)]
+    state = ContactState.initial(len(w_free), 3)
+    ref_state = state
+    for i, (fx, fy) in enumerate(loads):
+        e = np.array([fx, fy, 0.2 * fy])
+        state = solve_increment(W, w_free, state, settings, G=G, e=e, increment=i).state
+        ref_state = solve_increment(W, w_free, ref_state, ContactSettings(mu=0.3), G=G, e=e).state
+        np.testing.assert_allclose(state.p, ref_state.p, atol=1e-9 * np.max(np.abs(ref_state.p)))
+    assert seen["sub"] > 0
+    assert seen["whole"] > 0
+    assert seen["handed"] > 0  # a whole solve after a working set started from its base
+    assert seen["into_sub"] > 0  # ... and a working set after a whole solve
