@@ -18,7 +18,10 @@ points, or a sub-solve runs out of iterations) the full problem is solved from t
 a budget of its own, so the working set never fails an increment the full solve solves.
 The set is kept per ``W`` between increments while it still holds the points needed with
 at most ``SLACK`` spare, so that the restricted ``W`` — and the Krylov workspace keyed by
-it, with its LU — carry over.
+it, with its LU — carry over. Only one set of ``W``'s blocks lives at a time: a solve on a
+working set drops the whole ``W``'s Krylov workspace, a solve on all points drops the kept
+set, and the base LU is handed on renumbered (level 1, zero clearance: the contact phase's
+memory peak 1.57 W → 1.11 W, with the same iterations).
 """
 
 from __future__ import annotations
