@@ -11,8 +11,8 @@ Run: .venv/bin/python benchmarks/bench_cycle.py [max_level] [clearance_mm]
 
 Recorded runs: levels 0–2 at Δr = 0.1 mm, bench_cycle_levels_0-2_dr0.1.txt (level 2 before
 the pin's fine band: 1.07 M DOF, 29 min, 20.7 GB peak; with it 0.73 M DOF, 12 min, 13.3 GB,
-bench_cycle_pin_band.txt; zero clearance at level 2 needs a 36 000² dense operator); levels
-0–1 at Δr = 0 and 0.1 mm, bench_cycle_levels_0-1.txt.
+bench_cycle_pin_band.txt); levels 0–1 at Δr = 0 and 0.1 mm, bench_cycle_levels_0-1.txt; level 2
+at Δr = 0 (a 35 712² W, condensed by pin solves: 58 min, 18.2 GB), bench_cycle_level2_dr0.txt.
 """
 
 from __future__ import annotations

@@ -429,15 +429,17 @@ def available_memory_bytes() -> int | None:
     return None
 
 
-CONTACT_PHASE_W = 1.6
+CONTACT_PHASE_W = 1.0
 """Peak memory the contact phase adds to a zero-clearance cycle, in units of ``W``'s size.
 
-The closed points' block of ``W``, its float32 copy, the float32 base LU and the next one,
-the working set's block of ``W`` and their Krylov workspaces. Measured (resident-set peak
-over the phase, ``/proc/self/status`` VmHWM reset before it): level 1 1.52 W (1.08 GB on a
-0.71 GB ``W``), level 0 1.86 W (0.10 GB: fixed costs dominate). Level 2 (a 10.2 GB ``W``,
-condensed by pin solves) was killed by the kernel's out-of-memory killer at 24.3 GB in
-increment 43 of 50, above 1.24 W; with 0.6 W, the earlier estimate, it had been let through."""
+The closed points' block of ``W`` or the working set's (one of them at a time), its
+float32 copy, the float32 base LU and the next one. Measured (resident-set peak over the
+phase above its start, ``/proc/self/status`` VmHWM reset before it): level 0 0.87 W (fixed
+costs dominate a 0.05 GB ``W``), level 1 0.74 W (0.71 GB ``W``), level 2 about 0.5 W (a
+10.2 GB ``W`` condensed by pin solves: 13.6 → 18.6 GB, sampled every 20 s). Before the
+contact caches kept only one set of blocks (fe.contact.working) it was 1.52 W at level 1,
+and level 2 was killed by the out-of-memory killer at 24.3 GB in increment 43 of 50
+(with 0.6 W, the estimate then, it had been let through)."""
 
 
 def dense_memory_bytes(b_s: int, b_m: int, n: int, *, compliance_kept: bool = False) -> int:
