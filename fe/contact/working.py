@@ -131,12 +131,11 @@ def _restricted(
         and is_subset(points, kept.points)
     ):
         return kept.points, kept.W_sub, kept.w_sum_sub
-    if kept is not None:
-        taken = _take_base(kept.W_sub, kept.points)
-        _KEPT.pop(prob.W)
-        del kept  # its W_sub goes with it (callers hold no reference)
+    if kept is None:
+        taken = _take_base(prob.W, _everything(prob))
     else:
-        taken = _take_base(prob.W, np.arange(len(prob.w_free), dtype=np.int64))
+        del kept  # its W_sub goes with the kept set (callers hold no reference)
+        taken = _drop_kept(prob)
     points = _with_headroom(points, gap)
     W_sub = gather_block(prob.W, _dofs(points))
     w_sum_sub = float(np.sum(W_sub))
@@ -165,13 +164,20 @@ def use_whole(prob: Problem) -> None:
     The kept ``W_sub`` (up to a quarter of ``W``) and its workspace would otherwise live
     beside the whole problem's own ``W`` block through that solve.
     """
+    taken = _drop_kept(prob)
+    if taken is not None:
+        _give_base(taken, prob.W, prob.w_sum, _everything(prob))
+
+
+def _drop_kept(prob: Problem) -> _Taken | None:
+    """Forget the working set kept for ``prob.W`` and its workspace; return its base."""
     kept = _KEPT.pop(prob.W)
-    if kept is None:
-        return
-    taken = _take_base(kept.W_sub, kept.points)
-    del kept
-    everything = np.arange(len(prob.w_free), dtype=np.int64)
-    _give_base(taken, prob.W, prob.w_sum, everything)
+    return None if kept is None else _take_base(kept.W_sub, kept.points)
+
+
+def _everything(prob: Problem) -> IntArray:
+    """Every point of ``prob``, shape (m,), int64 (the whole ``W`` as a working set)."""
+    return np.arange(len(prob.w_free), dtype=np.int64)
 
 
 class _Taken(NamedTuple):

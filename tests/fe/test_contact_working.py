@@ -10,6 +10,7 @@ import pytest
 from fe.contact import ContactSettings, ContactState, KrylovOptions, solve_increment
 from fe.contact import krylov as contact_krylov
 from fe.contact import newton as contact_newton
+from fe.contact import solve as contact_solve
 from fe.contact import working as contact_working
 from tests.fe.test_contact_krylov import iterate, punch_history, random_W
 
@@ -318,8 +319,6 @@ def test_only_one_set_of_w_blocks_lives_at_a_time(monkeypatch):
     W, G, w_free = pin_in_hole()
     settings = ContactSettings(mu=0.3, working_set=True, working_margin=1.0)
     seen = {"sub": 0, "whole": 0, "handed": 0, "into_sub": 0}
-    from fe.contact import solve as contact_solve
-
     inner = contact_solve.newton
     last = [""]
 
