@@ -388,7 +388,7 @@ def compressibility(level: int) -> list[dict[str, Any]]:
     radius = np.array([np.linalg.norm(X[c] - X[c].mean(axis=0), axis=1).max() for c in clusters])
     dofs = [(3 * c[:, None] + np.arange(3)).ravel() for c in clusters]
     norm = float(np.linalg.norm(W))
-    tols = (1e-6, 1e-8, 1e-10)
+    tols = (1e-4, 1e-6, 1e-8, 1e-10)
     stored = dict.fromkeys(tols, 0)
     near = 0
     for i, di in enumerate(dofs):
