@@ -190,8 +190,8 @@ def variants(level: int) -> list[dict[str, Any]]:
             _patched(cycle, "solve_increment", solve),
             _patched(globalise, "_line_search", search),
         ):
-            for ws in list(configs.values()):  # no base LU carried over from the last run
-                krylov.release(ws.W)
+            for cond in configs.values():  # no base LU carried over from the last run
+                krylov.release(cond.W)
             t0 = time.perf_counter()
             result = cycle.run_cycle(system, 0.0, spec.cycle, configs=configs)
             wall = time.perf_counter() - t0
