@@ -1,7 +1,8 @@
 """Path variants and preconditioners of the zero-clearance contact phase (issue 15).
 
 Every variant changes only how Newton gets to the solution, never the solution: the table
-prints η's relative difference from the default run, which must stay at round-off.
+prints η's relative difference from the default run, which stays at the solver tolerance
+unless a variant made an increment fail and be cut back (sub-steps change the friction path).
 
 * ``variants``: the default cycle of the general hinge at one refinement level, rerun in the
   same process (the system is prepared once) with one change each: the start of an increment
