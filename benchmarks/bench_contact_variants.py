@@ -84,11 +84,13 @@ def _patched(module: Any, name: str, value: Any) -> Iterator[None]:
 
 def _start_wrapper(mode: str, solve: Callable[..., Any]) -> Callable[..., Any]:
     """The cycle's ``solve_increment`` with another start: ``previous`` or ``quadratic``."""
+    from fe.hinge.cycle import GRIP
+
     history: list[tuple[float, Any, Any]] = []  # (force, p, alpha) on this branch
     last_force = [0.0]
 
     def wrapped(W: Any, w0: Any, state: Any, contact: Any, **kw: Any) -> Any:
-        force = -float(kw["e"][6])  # e[GRIP] = -F
+        force = -float(kw["e"][GRIP])  # the clevis load e[GRIP] = -F
         if kw.get("start") is None:  # a new branch (after a reversal): no extrapolation
             history.clear()
         if mode == "previous":
@@ -408,6 +410,9 @@ def compressibility(level: int) -> list[dict[str, Any]]:
     ]
 
 
+PARTS = ("variants", "precond", "compress", "all")
+"""What ``main`` can run (the second argument)."""
+
 VARIANT_COLUMNS = ["variant", "iterations", "base_lus", "gmres", "contact_s", "vs_default"]
 VARIANT_COLUMNS += ["eta_rel_diff"]
 
@@ -415,6 +420,8 @@ VARIANT_COLUMNS += ["eta_rel_diff"]
 def main() -> None:
     level = int(sys.argv[1]) if len(sys.argv) > 1 else 0
     part = sys.argv[2] if len(sys.argv) > 2 else "all"
+    if part not in PARTS:
+        raise SystemExit(f"part must be one of {', '.join(PARTS)}, got {part!r}")
     print(f"general hinge, level {level}, clearance 0, Fg 400 N (CycleSettings defaults)")
     if part in ("variants", "all"):
         rows = variants(level)
