@@ -21,10 +21,18 @@ unless a variant made an increment fail and be cut back (sub-steps change the fr
   ``COMPRESS_LEAF`` points by coordinate bisection; blocks of clusters that do not overlap
   kept at the SVD rank above ``tol · |W|_F / clusters``, the others dense), as a fraction of
   the dense ``W``: the most its products could gain (they are memory-bound).
+* ``oracle``: a lower bound for any Newton path with this linear algebra. The default cycle
+  runs once (condensation timed as the floor, contact phase as the solver takes it); then,
+  for every increment that iterated, the work of an oracle that starts at the converged
+  layout and needs one step: form ``J`` from the closed points' block of ``W`` (float32, as
+  the Krylov path's base; gathering the block is not counted), factorise it
+  as the solver does, one solve, and two exact products with ``W`` (the residual before and
+  after). Its cycle/floor is what no better start, line search or update rule can go below
+  without a cheaper factorisation or product.
 
 It counts and swaps by wrapping the solver's internal functions in this process.
 
-Run: .venv/bin/python benchmarks/bench_contact_variants.py [level] [variants|precond|compress|all]
+Run: .venv/bin/python benchmarks/bench_contact_variants.py [level] [variants|precond|compress|oracle|all]
 """
 
 from __future__ import annotations
@@ -56,7 +64,7 @@ CAPTURE = 19
 """Increment whose middle Newton system ``precond`` takes (the first reversal's fronts)."""
 
 
-def _prepare(level: int) -> tuple[Any, Any, Any]:
+def _prepare(level: int, condense: bool = True) -> tuple[Any, Any, Any]:
     from cad.general import GeneralHingeParams
     from fe.hinge.cycle import CycleSettings, configurations
     from fe.service import ModelService, ModelSpec
@@ -69,7 +77,7 @@ def _prepare(level: int) -> tuple[Any, Any, Any]:
         CycleSettings(amplitude_n=400.0, blas_threads=1),
     )
     system = ModelService().prepare(spec, 0.0).system
-    return spec, system, configurations(system, 0.0)
+    return spec, system, configurations(system, 0.0) if condense else None
 
 
 @contextmanager
@@ -410,7 +418,92 @@ def compressibility(level: int) -> list[dict[str, Any]]:
     ]
 
 
-PARTS = ("variants", "precond", "compress", "all")
+def oracle(level: int) -> list[dict[str, Any]]:
+    """The default cycle and the one-step-per-increment bound; one row each."""
+    import fe.contact.solve as solve
+    import fe.hinge.cycle as cycle
+    from fe.contact.dense import factor_jacobian, lu_solve
+    from fe.contact.newton import form_jacobian, linearise, sparse_product
+
+    t0 = time.perf_counter()
+    spec, system, _ = _prepare(level, condense=False)
+    t1 = time.perf_counter()
+    configs = cycle.configurations(system, 0.0)
+    # bench_cycle's floor: the sparse factorisation (none at zero clearance) + condensation
+    floor = time.perf_counter() - t1 + system.timings_s.get("factorisation", 0.0)
+    print(f"prepared in {t1 - t0:.1f} s, condensed (the floor) in {floor:.1f} s", flush=True)
+    finals: list[Any] = []
+    newton_loop = solve.newton_loop
+
+    def loop_kept(prob: Any, it: Any, r: Any, *args: Any, **kw: Any) -> Any:
+        run = newton_loop(prob, it, r, *args, **kw)
+        if run.iterations:
+            finals.append((prob, run.it, run.r))
+        return run
+
+    with _patched(solve, "newton_loop", loop_kept):
+        t0 = time.perf_counter()
+        result = cycle.run_cycle(system, 0.0, spec.cycle, configs=configs)
+        contact = time.perf_counter() - t0
+    steps: list[dict[str, float]] = []  # per increment that iterated: seconds per part
+    sizes, moved, last = [], [], None
+    for prob, it, r in finals:
+        status = it.law.status
+        same = last is not None and len(last) == len(status)
+        moved.append(float(np.mean(last != status)) if same else 1.0)  # share that changed
+        last = status
+        lin = linearise(prob, it, r)
+        dofs = (3 * lin.closed[:, None] + np.arange(3)).ravel()
+        block = prob.W[np.ix_(dofs, dofs)].astype(np.float32)  # not timed (a bound)
+        t = [time.perf_counter()]
+        J = form_jacobian(block, lin.closed, lin)
+        t.append(time.perf_counter())
+        factor = factor_jacobian(J, lin.keys, single=True)
+        t.append(time.perf_counter())
+        if factor is None:
+            raise RuntimeError("a converged layout's J is singular in float32")
+        lu_solve(factor.lu, lin.b)
+        t.append(time.perf_counter())
+        for _ in range(2):
+            sparse_product(prob.W, it.p, prob.symmetric)
+        t.append(time.perf_counter())
+        steps.append(dict(zip(("form", "lu", "solve", "products"), np.diff(t), strict=True)))
+        sizes.append(len(lin.keys))
+    parts = {key: sum(step[key] for step in steps) for key in steps[0]}
+    print(
+        f"oracle over {len(sizes)} solves ({int(np.mean(sizes))} unknowns on average, "
+        f"{max(sizes)} at most): " + ", ".join(f"{k} {v:.2f} s" for k, v in parts.items()),
+        flush=True,
+    )
+    counts = np.histogram(moved[1:], bins=[0.0, 1e-9, 0.05, 0.15, 1.0])[0]
+    print(
+        "points whose status changed since the previous increment's converged state: "
+        f"none in {counts[0]}, < 5 % in {counts[1]}, 5-15 % in {counts[2]}, "
+        f"> 15 % in {counts[3]} of {len(moved) - 1} increments",
+        flush=True,
+    )
+    # Where no status changed, the previous increment's LU could serve (J differs only by
+    # the slip directions' turn): count its solve and products only.
+    reuse = sum(
+        step["solve"] + step["products"] + (step["form"] + step["lu"]) * (share > 0.0)
+        for step, share in zip(steps, moved, strict=True)
+    )
+    iterations = sum(i.iterations for i in result.increments)
+    rows = [
+        {"path": "this solver", "iterations": iterations, "contact_s": contact},
+        {
+            "path": "oracle: one LU per increment",
+            "iterations": len(sizes),
+            "contact_s": sum(parts.values()),
+        },
+        {"path": "oracle: LU where a status moved", "iterations": len(sizes), "contact_s": reuse},
+    ]
+    return [
+        {**row, "floor_s": floor, "cycle/floor": 1.0 + row["contact_s"] / floor} for row in rows
+    ]
+
+
+PARTS = ("variants", "precond", "compress", "oracle", "all")
 """What ``main`` can run (the second argument)."""
 
 VARIANT_COLUMNS = ["variant", "iterations", "base_lus", "gmres", "contact_s", "vs_default"]
@@ -434,6 +527,9 @@ def main() -> None:
         print_table(rows, ["preconditioner", "setup_s", "to_1e-3", "to_1e-8"])
     if part in ("compress", "all"):
         print_table(compressibility(level), ["tol", "stored_fraction", "dense_near"])
+    if part in ("oracle", "all"):
+        rows = oracle(level)
+        print_table(rows, ["path", "iterations", "contact_s", "floor_s", "cycle/floor"])
 
 
 if __name__ == "__main__":
