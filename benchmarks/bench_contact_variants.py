@@ -28,7 +28,9 @@ unless a variant made an increment fail and be cut back (sub-steps change the fr
   the Krylov path's base; gathering the block is not counted), factorise it
   as the solver does, one solve, and two exact products with ``W`` (the residual before and
   after). Its cycle/floor is what no better start, line search or update rule can go below
-  without a cheaper factorisation or product.
+  without a cheaper factorisation or product. A second row keeps the previous increment's
+  LU where no point changed status (only its solve and products counted), and the share of
+  points whose status changed between converged increments is printed.
 
 It counts and swaps by wrapping the solver's internal functions in this process.
 
