@@ -21,8 +21,9 @@ import numpy as np
 
 from cad.bearing import BearingHingeParams
 from fe.hinge.protocol import CycleSettings
-from fe.service import DesignPoint, ModelService, ModelSpec
 from mesh.settings import MeshSettings
+from model.service import ModelService
+from model.spec import DesignPoint, ModelSpec
 
 PRELOADS = (0.0, 50.0, 100.0, 150.0, 200.0)
 AMPLITUDES = (100.0, 200.0, 300.0, 400.0, 500.0)

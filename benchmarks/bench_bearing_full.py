@@ -52,8 +52,9 @@ def run_model(
     from fe.bearing.full_cycle import run_full_cycle
     from fe.bearing.one_ball import MESH_LEVELS
     from fe.hinge.protocol import CycleSettings
-    from fe.service import ModelService, ModelSpec
     from mesh.settings import MeshSettings
+    from model.service import ModelService
+    from model.spec import ModelSpec
 
     hinge = BearingHingeParams(ball_model=BallModel(model))
     spec = ModelSpec(

@@ -54,7 +54,8 @@ def model_file(
     from cad.general import GeneralHingeParams
     from fe.hinge.cycle import CycleSettings
     from mesh.settings import MeshSettings
-    from validation.model_file import ModelSpec, write_model
+    from model.file import write_model
+    from model.spec import ModelSpec
 
     if mesh == "conforming":
         settings = MeshSettings.coarse(**CONFORMING)
@@ -159,7 +160,7 @@ def mortar_row(
     from fe.interop.ccx import loop_figures, loop_from_dat, parse_dat, parse_sta
     from fe.interop.inp import GRIP_REF_SET, DeckSettings, write_deck
     from mesh.build import mesh_hinge
-    from validation.model_file import read_model
+    from model.file import read_model
 
     toml = model_file(folder, "conforming", clearance_mm=clearance_mm, increments=increments)
     out = folder / "ours_conforming"

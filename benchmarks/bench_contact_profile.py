@@ -40,8 +40,9 @@ def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict
     import fe.hinge.cycle as cycle
     from cad.general import GeneralHingeParams
     from fe.hinge.cycle import CycleSettings
-    from fe.service import DesignPoint, ModelService, ModelSpec
     from mesh.settings import MeshSettings
+    from model.service import ModelService
+    from model.spec import DesignPoint, ModelSpec
 
     now: dict[str, float] = {}
 

@@ -69,8 +69,9 @@ CAPTURE = 19
 def _prepare(level: int, condense: bool = True) -> tuple[Any, Any, Any]:
     from cad.general import GeneralHingeParams
     from fe.hinge.cycle import CycleSettings, configurations
-    from fe.service import ModelService, ModelSpec
     from mesh.settings import MeshSettings
+    from model.service import ModelService
+    from model.spec import ModelSpec
 
     spec = ModelSpec(
         "general",

@@ -30,8 +30,9 @@ def case(level: int, clearance: float, threads: int = 1, **mesh: float) -> dict[
     """Run the default 400 N cycle at one refinement; ``mesh``: other MeshSettings fields."""
     from cad.general import GeneralHingeParams
     from fe.hinge.cycle import CycleSettings
-    from fe.service import DesignPoint, ModelService, ModelSpec
     from mesh.settings import MeshSettings
+    from model.service import ModelService
+    from model.spec import DesignPoint, ModelSpec
 
     spec = ModelSpec(
         "general",

@@ -36,8 +36,9 @@ FORCE_NOISE_REL, DISP_NOISE_MM = 0.005, 2e-4
 def _truth_paths() -> dict[tuple[float, float], tuple[np.ndarray, np.ndarray, float]]:
     from cad.general import GeneralHingeParams
     from fe.hinge.protocol import CycleSettings
-    from fe.service import DesignPoint, ModelService, ModelSpec
     from mesh.settings import MeshSettings
+    from model.service import ModelService
+    from model.spec import DesignPoint, ModelSpec
 
     spec = ModelSpec("general", GeneralHingeParams(), MeshSettings(), CycleSettings())
     service = ModelService()
@@ -78,10 +79,10 @@ def main(n_null: int) -> None:
     from cad.general import GeneralHingeParams
     from fe.hinge.protocol import CycleSettings
     from mesh.settings import MeshSettings
+    from model.spec import ModelSpec
     from validation.candidate_fit import measured_features
     from validation.diagnose import DiagnoseSettings, diagnose
     from validation.evaluate import ModelEvaluator
-    from validation.model_file import ModelSpec
 
     t0 = time.perf_counter()
     paths = _truth_paths()
@@ -118,11 +119,15 @@ def main(n_null: int) -> None:
     print("|---|--:|---|---|--:|--:|--:|--:|--:|")
     for r in rows:
         sens = "—" if r[7] is None else f"{r[7]:.0%}"
-        print(f"| {r[0]} | {r[1]} | {r[2]} | {r[3]} | {r[4]:.1f} | {r[5]:.1f} | {r[6]} | {sens} | {r[8]:.0f} |")
+        print(
+            f"| {r[0]} | {r[1]} | {r[2]} | {r[3]} | {r[4]:.1f} | {r[5]:.1f} | {r[6]} | {sens} | {r[8]:.0f} |"
+        )
     nulls = [r for r in rows if r[0] == "null"]
     alarms = sum(r[2] not in ("no_missing_effect", "cannot_tell") for r in nulls)
-    print(f"\nnull: {alarms} alarm(s) in {len(nulls)} seeds (false-alarm rate {alarms / max(1, len(nulls)):.0%}; "
-          f"alpha {s.alpha}); verdicts: " + ", ".join(sorted({r[2] for r in nulls})))
+    print(
+        f"\nnull: {alarms} alarm(s) in {len(nulls)} seeds (false-alarm rate {alarms / max(1, len(nulls)):.0%}; "
+        f"alpha {s.alpha}); verdicts: " + ", ".join(sorted({r[2] for r in nulls}))
+    )
 
 
 if __name__ == "__main__":

@@ -22,7 +22,16 @@ DASK = str(Path(sys.executable).parent / "dask")
 
 def _study(study: Path, out: Path, *extra: str) -> float:
     t0 = time.perf_counter()
-    cmd = [sys.executable, "-m", "studies.cli", "study", str(study), "--out", str(out), "--no-plots"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "studies.cli",
+        "study",
+        str(study),
+        "--out",
+        str(out),
+        "--no-plots",
+    ]
     subprocess.run([*cmd, *extra], check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
     return time.perf_counter() - t0
 
@@ -41,7 +50,16 @@ def _cluster_run(study: Path, out: Path) -> float:
     procs = [subprocess.Popen(sched, stdout=log, stderr=subprocess.STDOUT)]
     try:
         time.sleep(2.0)
-        worker = [DASK, "worker", address, "--nthreads", "1", "--host", "127.0.0.1", "--no-dashboard"]
+        worker = [
+            DASK,
+            "worker",
+            address,
+            "--nthreads",
+            "1",
+            "--host",
+            "127.0.0.1",
+            "--no-dashboard",
+        ]
         procs += [subprocess.Popen(worker, stdout=log, stderr=subprocess.STDOUT) for _ in range(2)]
         from distributed import Client
 

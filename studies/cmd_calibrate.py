@@ -21,8 +21,8 @@ from studies.args import add_fit_arguments
 from studies.pipeline import check_writable_dir, dumps
 
 if TYPE_CHECKING:
+    from model.spec import ModelSpec
     from validation.measurements import MeasurementSet
-    from validation.model_file import ModelSpec
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -52,11 +52,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab calibrate``."""
+    from model.file import read_model, write_model
     from validation.calibrate import append_ledger, calibrate, plot_ledger
     from validation.diagnose import DiagnoseSettings
     from validation.features import FeatureSettings
     from validation.measurements import read_measurement_set
-    from validation.model_file import read_model, write_model
 
     spec = read_model(args.model)
     data = read_measurement_set(args.data)

@@ -1,7 +1,7 @@
 """``hingelab compare``: run a model file at every measured design point and judge it.
 
 ``hingelab compare MODEL.toml DATA_DIR --out DIR [--json]`` reads the model
-(``validation.model_file``) and the measurements (``validation.measurements``), runs
+(``model.file``) and the measurements (``validation.measurements``), runs
 the cycle once per (clearance, amplitude) — one mesh and one factorisation per
 clearance, reused for every amplitude — compares (``validation.compare``) and writes
 into DIR: ``comparison.json``, the model loops as ``model_loops/*.csv`` and the
@@ -61,9 +61,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab compare``."""
+    from model.file import read_model
     from validation.compare import CompareSettings
     from validation.measurements import read_measurement_set
-    from validation.model_file import read_model
     from validation.workflow import compare_and_write
 
     spec = read_model(args.model)

@@ -88,7 +88,8 @@ def run(args: argparse.Namespace) -> int:
     from fe.bearing.fits import FitSystem
     from fe.bearing.system import BearingSystem
     from fe.hinge.report import write_loop_csv, write_loop_png, write_time_series
-    from fe.service import DesignPoint, ModelService
+    from model.service import ModelService
+    from model.spec import DesignPoint
 
     t0 = time.perf_counter()
     if args.frames < 0:
@@ -186,7 +187,8 @@ def _spec_from_args(args: argparse.Namespace) -> Any:
     """Return the ModelSpec of a model file or of the options, with the overrides applied."""
     from cad.general import GeneralHingeParams
     from fe.hinge.protocol import CycleSettings
-    from fe.service import ModelSpec, check_spec
+    from model.service import check_spec
+    from model.spec import ModelSpec
 
     if args.model is None and args.hinge == "bearing":
         spec = _bearing_spec(args)
@@ -204,7 +206,7 @@ def _spec_from_args(args: argparse.Namespace) -> Any:
         hinge = GeneralHingeParams(clearance_mm=0.0 if args.clearance is None else args.clearance)
         spec = ModelSpec("general", hinge, settings_from_args(args), CycleSettings())
     else:
-        from validation.model_file import read_model
+        from model.file import read_model
 
         given = [
             f"--{n.replace('_', '-')}"
@@ -240,7 +242,7 @@ def _bearing_spec(args: argparse.Namespace) -> Any:
     """The bearing hinge's ModelSpec from the command-line options."""
     from cad.bearing import BallModel, BearingHingeParams, Interfaces
     from fe.hinge.protocol import CycleSettings
-    from fe.service import ModelSpec
+    from model.spec import ModelSpec
 
     if args.clearance is not None:
         raise ParameterError(

@@ -42,10 +42,10 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab diagnose``."""
     from cad.errors import ParameterError
+    from model.file import read_model
     from validation.diagnose import DiagnoseSettings, diagnose
     from validation.features import FeatureSettings
     from validation.measurements import read_measurement_set
-    from validation.model_file import read_model
 
     if not 0.0 < args.alpha <= 0.5:  # 'not' also refuses NaN
         raise ParameterError(f"--alpha must be in (0, 0.5], got {args.alpha}")

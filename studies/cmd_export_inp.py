@@ -65,7 +65,8 @@ def run(args: argparse.Namespace) -> int:
     from fe.effects import REGISTRY
     from fe.interop.inp import CYCLE, ContactType, DeckSettings, write_deck
     from mesh.build import mesh_hinge
-    from validation.model_file import read_model, with_clearance
+    from model.file import read_model
+    from model.spec import with_clearance
 
     spec = read_model(args.model, REGISTRY)
     if args.out.suffix.lower() != ".inp":

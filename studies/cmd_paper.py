@@ -54,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
         print(dumps(report))
     else:
         failed = sum(s["failed"] for s in report["sweeps"].values())
-        print(f"report: {args.out / 'report.md'} ({report['wall_s']:.0f} s, {failed} points failed)")
+        print(
+            f"report: {args.out / 'report.md'} ({report['wall_s']:.0f} s, {failed} points failed)"
+        )
     failed = sum(s["failed"] for s in report["sweeps"].values())
     return 0 if failed == 0 else 1

@@ -61,7 +61,7 @@ def _fmt_point(params: dict[str, Any], width: int = 0) -> str:
 
 
 def _point_params(point: Any) -> dict[str, float]:
-    from studies.sweep import point_params
+    from studies.sweep_points import point_params
 
     return point_params(point)
 

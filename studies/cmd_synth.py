@@ -79,7 +79,7 @@ def parse_effects(items: list[str]) -> dict[str, dict[str, float]]:
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab synth``."""
     from fe.effects import validate_effects
-    from validation.model_file import read_model
+    from model.file import read_model
     from validation.synth import (
         DEFAULT_BEARING_DESIGN,
         DEFAULT_DESIGN,

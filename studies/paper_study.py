@@ -103,7 +103,6 @@ class PaperStudy:
             ),
         }  # fmt: skip
 
-
     def _from_file(self, name: str) -> Any:
         """One shipped study file's sweep, with this study's μ, interfaces and workers."""
         from cad.bearing import BearingHingeParams, Interfaces

@@ -44,7 +44,7 @@ def data_file(name: str) -> Path:
 def _spec(quick: bool) -> Any:
     from cad.general import GeneralHingeParams
     from mesh.settings import MeshSettings
-    from validation.model_file import ModelSpec
+    from model.spec import ModelSpec
 
     if quick:
         return ModelSpec("general", GeneralHingeParams(), MeshSettings.coarse())

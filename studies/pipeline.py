@@ -12,7 +12,7 @@ from cad.errors import ParameterError
 
 if TYPE_CHECKING:  # the geometry stack imports build123d (seconds): only where it is used
     from cad.model import HingeModel
-    from fe.service.geometry import MeshedHinge
+    from mesh.meshed import MeshedHinge
     from mesh.settings import MeshSettings
 
 __all__ = [
@@ -31,15 +31,15 @@ HINGES = ("general", "bearing")
 def build_and_mesh(
     model: HingeModel, settings: MeshSettings, out: Path | None, *, picture: bool = True
 ) -> MeshedHinge:
-    """Mesh a hinge model and write its files (``fe.service.geometry.build_and_mesh``)."""
-    from fe.service.geometry import build_and_mesh as build
+    """Mesh a hinge model and write its files (``mesh.meshed.build_and_mesh``)."""
+    from mesh.meshed import build_and_mesh as build
 
     return build(model, settings, out, picture=picture)
 
 
 def __getattr__(name: str) -> Any:
     if name == "MeshedHinge":  # re-exported lazily, so that ``hingelab --help`` stays fast
-        from fe.service.geometry import MeshedHinge
+        from mesh.meshed import MeshedHinge
 
         return MeshedHinge
     raise AttributeError(name)

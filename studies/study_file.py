@@ -50,8 +50,8 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "bearing": ("preload_N", "amplitude_N"),
 }
 """What a study of each hinge kind may vary: (design value, amplitude), the fields of
-``fe.service.DesignPoint`` under the names the sweep's trace and table give them
-(``studies.sweep.point_params``)."""
+``model.spec.DesignPoint`` under the names the sweep's trace and table give them
+(``studies.sweep_points.point_params``)."""
 
 RESPONSES = (
     "eta",
@@ -95,7 +95,7 @@ class Study:
         path: The file.
         name: Study name in the trace.
         description: Free text.
-        spec: The model (``fe.service.ModelSpec``).
+        spec: The model (``model.spec.ModelSpec``).
         design: Design type.
         points: (design value, amplitude [N]) of every point, in design order; the design
             value is the clearance [mm] of the general hinge or the preload [N] of the
@@ -188,21 +188,21 @@ def _override(
 
 def _base_spec(study: dict[str, Any], path: Path) -> Any:
     from cad.general import GeneralHingeParams
-    from fe.service import ModelSpec
+    from model.spec import ModelSpec
 
     model = study.get("model")
     if model is None:
         return ModelSpec("general", GeneralHingeParams())
     if not isinstance(model, str):
         raise _err(path, "study", f"model must be a path (string), got {model!r}")
-    from validation.model_file import read_model
+    from model.file import read_model
 
     return read_model(path.parent / model)
 
 
 def _model(doc: dict[str, Any], study: dict[str, Any], path: Path) -> Any:
-    from fe.service import check_spec
     from mesh.settings import MeshSettings
+    from model.service import check_spec
 
     spec = _base_spec(study, path)
     check_spec(spec)
@@ -326,7 +326,7 @@ def _design(doc: dict[str, Any], spec: Any, path: Path) -> tuple[str, list[tuple
 
 
 def _check_points(points: list[tuple[float, float]], kind: str, path: Path) -> None:
-    from fe.service import DesignPoint
+    from model.spec import DesignPoint
 
     name, amp = VARIABLES[kind]
     for i, (v, a) in enumerate(points):

@@ -1,6 +1,6 @@
 """Design sweeps: every (clearance, amplitude) point of a grid, traced, resumable, on Dask.
 
-Points run through the model service (``fe.service``): each clearance is meshed,
+Points run through the model service (``model.service``): each clearance is meshed,
 factorised and condensed once and every amplitude runs on it; each point's result is
 stored by its content key (``results/``) the moment it finishes and recorded in the
 trace right after, by the driver, one point at a time. So an interrupted sweep keeps
@@ -39,13 +39,14 @@ import logging
 import sqlite3
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from cad.errors import ParameterError
 from fe.hinge.protocol import DEFAULT_MU
 from mesh.settings import MeshSettings
+from studies.sweep_points import point_record, sweep_service
 
 logger = logging.getLogger(__name__)
 
@@ -67,7 +68,7 @@ class SweepSettings:
             the clearance [mm] of the general hinge or the preload [N] of the bearing hinge;
             when given they replace the grid (``clearances_mm`` or ``preloads_n`` ×
             ``amplitudes_n``).
-        model: The model (``fe.service.ModelSpec``) to run instead of the default
+        model: The model (``model.spec.ModelSpec``) to run instead of the default
             general hinge with ``mu``, the increments and ``mesh`` above.
         scheduler: Address of an existing Dask scheduler (``tcp://host:8786``); None runs
             in this process or on a private LocalCluster (``workers``).
@@ -107,15 +108,15 @@ class SweepSettings:
         self.points()
 
     def spec(self) -> Any:
-        """The ``fe.service.ModelSpec`` of the sweep (the clearance is set per point)."""
+        """The ``model.spec.ModelSpec`` of the sweep (the clearance is set per point)."""
         if self.model is not None:
-            from fe.service import check_spec
+            from model.service import check_spec
 
             check_spec(self.model)
             return self.model
         from cad.general import GeneralHingeParams
         from fe.hinge.protocol import CycleSettings
-        from fe.service import ModelSpec
+        from model.spec import ModelSpec
 
         cycle = CycleSettings(
             mu=self.mu,
@@ -149,7 +150,8 @@ class SweepSettings:
             ParameterError: For a value out of ``DesignPoint``'s ranges (a preload outside
                 [0, 500] N, a negative clearance, ...), named with its range.
         """
-        from fe.service import DesignPoint, design_points
+        from model.service import design_points
+        from model.spec import DesignPoint
 
         if self.is_bearing:
             pairs = self.points_mm_n or tuple(
@@ -167,114 +169,6 @@ class SweepSettings:
             p = DesignPoint(amplitude_n=a, clearance_mm=c)
             seen.setdefault((p.clearance_mm, p.amplitude_n), p)
         return list(seen.values())
-
-
-def point_params(p: Any) -> dict[str, float]:
-    """The trace parameters of a design point (preload or clearance, and amplitude)."""
-    if p.preload_n is not None:
-        return {"preload_N": p.preload_n, "amplitude_N": p.amplitude_n}
-    return {"clearance_mm": p.clearance_mm, "amplitude_N": p.amplitude_n}
-
-
-def geometry_folder(out: Path) -> Callable[[float], Path]:
-    """Where a sweep writes the files of the geometry with a given clearance."""
-    return lambda clearance: out / "geometry" / f"c{clearance:.3f}"
-
-
-def mesh_stats_of(prepared: Any) -> dict[str, Any]:
-    """The mesh figures a point's trace record keeps, from a prepared geometry."""
-    r = prepared.meshed.report
-    return {
-        "n_hex": r.n_hex,
-        "n_nodes": r.n_nodes,
-        "min_scaled_jacobian": r.min_scaled_jacobian,
-        "hex_fraction": r.hex_fraction,
-    }
-
-
-def point_record(
-    run: Any,
-    settings: SweepSettings,
-    out: Path,
-    *,
-    mesh_stats: dict[str, Any] | None = None,
-    lu_threads: int | None = None,
-) -> dict[str, Any]:
-    """Write a point's files (loop CSV/PNG, result.json) and return its trace record.
-
-    Args:
-        run: The point's ``fe.service.PointRun``.
-        settings: The sweep.
-        out: The sweep's folder.
-        mesh_stats: Mesh figures when ``run.prepared`` is None (a point run elsewhere).
-        lu_threads: The LU thread count of the process that ran it (default: this one's).
-    """
-    from fe.hinge.report import write_loop_csv, write_loop_png
-    from studies.pipeline import dumps, strict_json
-
-    if lu_threads is None:
-        from fe.contact import newton
-
-        lu_threads = int(newton.LU_THREADS)
-    spec = settings.spec()
-
-    p = run.point
-    folder = out / "points" / p.label()
-    folder.mkdir(parents=True, exist_ok=True)
-    geo = out / "geometry" / f"c{p.clearance_mm:.3f}"
-    artifacts: dict[str, Any] = {
-        "step": geo / "hinge.step",
-        "mesh_msh": geo / "mesh.msh",
-        "mesh_vtu": geo / "mesh.vtu",
-        "mesh_png": geo / "mesh.png",
-    }
-    artifacts = {k: v for k, v in artifacts.items() if v.is_file()}
-    mesh_stats = mesh_stats_of(run.prepared) if run.prepared is not None else (mesh_stats or {})
-    rec: dict[str, Any] = {
-        "study": settings.study,
-        "params": point_params(p),
-        "solver": {
-            "result_key": run.key,
-            "mu": spec.cycle.mu,
-            "increments_per_stage": spec.cycle.increments_per_stage,
-            "clearance_increments": spec.cycle.clearance_increments,
-            "mesh": asdict(spec.mesh),
-            "effects": {k: dict(v) for k, v in spec.effects.items()},
-            "lu_threads": lu_threads,  # this worker's share of the cores (timings depend on it)
-            "cached": run.cached,
-        },
-        "mesh_stats": mesh_stats,
-        "artifacts": artifacts,
-    }
-    if run.ok:
-        result = run.result
-        what = (
-            f"bearing hinge ({spec.hinge.interfaces.value}), Fp = {p.preload_n:g} N"
-            if p.preload_n is not None
-            else f"general hinge, Δr = {p.clearance_mm:g} mm"
-        )
-        title = f"{what}, Fg = {p.amplitude_n:g} N, μ = {spec.cycle.mu:g}"
-        artifacts["loop_csv"] = write_loop_csv(result, folder / "loop.csv")
-        artifacts["loop_png"] = write_loop_png(result, folder / "loop.png", title=title)
-        # NaN (η of a loop without energy) becomes null: strict JSON, and no NaN in the table
-        rec["results"] = strict_json(
-            {k: v for k, v in result.metrics().items() if isinstance(v, float)}
-        ) | {"wall_s": run.wall_s}
-        rec["convergence"] = strict_json(
-            {
-                "increments": len(result.increments),
-                "iterations": [i.iterations for i in result.increments],
-                "timings_s": result.timings_s,
-            }
-        )
-        rec["status"], rec["error"] = "ok", None
-    else:
-        if run.partial is not None and run.partial.increments:
-            artifacts["loop_csv"] = write_loop_csv(run.partial, folder / "loop_partial.csv")
-        rec["results"], rec["convergence"] = {}, {}
-        rec["status"], rec["error"] = "failed", run.error
-    (folder / "result.json").write_text(dumps({k: v for k, v in rec.items() if k != "artifacts"}))
-    return rec
 
 
 def trace_status(db: Path, study: str) -> tuple[dict[str, int], set[str]]:
@@ -337,7 +231,7 @@ class PlannedPoint:
     """One point of a sweep and what a run would do with it.
 
     Attributes:
-        point: The ``fe.service.DesignPoint``.
+        point: The ``model.spec.DesignPoint``.
         key: Its result key.
         state: Done, stored, failed before, or to do.
         point_id: Its trace id when done.
@@ -351,7 +245,8 @@ class PlannedPoint:
 
 def plan_sweep(settings: SweepSettings, out: Path) -> list[PlannedPoint]:
     """Say what a run would do at every point, without meshing or writing anything."""
-    from fe.service import ResultStore, result_key
+    from model.spec import result_key
+    from model.store import ResultStore
 
     spec = settings.spec()
     ok, failed = trace_status(out / "trace.sqlite", settings.study)
@@ -459,7 +354,7 @@ def run_sweep(
 
         run_on_scheduler(todo, settings, out, store)
     elif settings.workers == 1 or n_geo <= 1:
-        service = _service(out)
+        service = sweep_service(out)
         service.run(spec, todo, on_result=lambda run: store(point_record(run, settings, out)))
     else:
         from studies.sweep_dask import run_on_local_cluster
@@ -477,15 +372,4 @@ def run_sweep(
         table,
         time.perf_counter() - t0,
         counts["cached"],
-    )
-
-
-def _service(out: Path) -> Any:
-    from fe.service import ModelService, ResultStore
-
-    return ModelService(
-        store=ResultStore(out / "results"),
-        cache_dir=out / "cache",
-        geometry_dir=geometry_folder(out),
-        max_geometries=1,
     )

@@ -44,10 +44,10 @@ def _quiet_dask() -> None:
 
 def run_point_task(settings: Any, point: Any, out: Path) -> dict[str, Any]:
     """Run one point in a LocalCluster worker (its geometry reused across the worker's tasks)."""
-    from studies.sweep import _service, point_record
+    from studies.sweep_points import point_record, sweep_service
 
     with _WORKER_LOCK:
-        service = _WORKER_SERVICES.setdefault(str(out), _service(out))
+        service = _WORKER_SERVICES.setdefault(str(out), sweep_service(out))
         (run,) = service.run(settings.spec(), [point])
     return point_record(run, settings, out)
 
@@ -60,8 +60,9 @@ def run_point_remote(spec: Any, point: Any) -> dict[str, Any]:
         ``mesh_stats`` and ``lu_threads`` of this worker.
     """
     from fe.contact.newton import LU_THREADS
-    from fe.service import ModelService, content_hash
-    from studies.sweep import mesh_stats_of
+    from model.service import ModelService
+    from model.spec import content_hash
+    from studies.sweep_points import mesh_stats_of
 
     with _WORKER_LOCK:
         key = content_hash({"spec": spec})
@@ -139,8 +140,8 @@ def run_on_scheduler(points: list[Any], settings: Any, out: Path, store: Store) 
     """
     from dask.distributed import Client
 
-    from fe.service import ResultStore
-    from studies.sweep import point_record
+    from model.store import ResultStore
+    from studies.sweep_points import point_record
 
     _quiet_dask()
     spec = settings.spec()

@@ -22,10 +22,10 @@ from typing import Any
 import numpy as np
 
 from cad.errors import ParameterError
+from model.spec import ModelSpec
 from validation.diagnose import DiagnoseSettings, chi2, fit_candidate, measured_features
 from validation.evaluate import ModelEvaluator
 from validation.measurements import MeasurementSet
-from validation.model_file import ModelSpec
 
 
 @dataclass(frozen=True)

@@ -198,7 +198,11 @@ class Comparison:
         """Return a JSON-ready dict (no arrays)."""
         return {
             "settings": {
-                **{k: v for k, v in vars(self.settings).items() if k not in ("uncertainty", "features")},
+                **{
+                    k: v
+                    for k, v in vars(self.settings).items()
+                    if k not in ("uncertainty", "features")
+                },
                 "uncertainty": self.settings.uncertainty.value,
                 "features": vars(self.settings.features),
             },

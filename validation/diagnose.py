@@ -55,7 +55,7 @@ import numpy as np
 from scipy import stats
 
 from cad.errors import ParameterError
-from fe.service.spec import INTERFACE_FRICTION
+from model.spec import INTERFACE_FRICTION, ModelSpec
 from validation.candidate_fit import (
     CandidateFit,
     DiagnoseSettings,
@@ -72,7 +72,6 @@ from validation.candidate_fit import (
 from validation.evaluate import ModelEvaluator
 from validation.features import FEATURES, derived
 from validation.measurements import MeasurementSet
-from validation.model_file import ModelSpec
 
 __all__ = [
     "CandidateFit",

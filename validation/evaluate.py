@@ -20,9 +20,9 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import HingelabError
+from model.spec import ModelSpec
 from validation.features import loop_features
 from validation.loops import process_loop
-from validation.model_file import ModelSpec
 
 FloatArray = npt.NDArray[np.float64]
 Effects = Mapping[str, Mapping[str, float]]
@@ -69,7 +69,7 @@ class ModelEvaluator:
         if clearance_increments is not None:
             cycle = dataclasses.replace(cycle, clearance_increments=clearance_increments)
         self.cycle = cycle
-        from fe.service import ModelService
+        from model.service import ModelService
 
         self.service = ModelService()  # every clearance's geometry kept: fits revisit them
         self._loops: dict[tuple[Any, ...], tuple[FloatArray, FloatArray] | None] = {}
@@ -93,7 +93,7 @@ class ModelEvaluator:
         mu = self.cycle.mu if mu is None else float(mu)
         key = (point, _key(solve_effects), mu)
         if key not in self._loops:
-            from fe.service import DesignPoint
+            from model.spec import DesignPoint
             from validation.synth import machine_path
 
             x, amp = point

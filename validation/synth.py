@@ -1,6 +1,6 @@
 """Synthetic measurement sets: a model with hidden effects, measured as a test machine would.
 
-``synthesize`` runs a model (``validation.model_file.ModelSpec``) with extra, hidden
+``synthesize`` runs a model (``model.file.ModelSpec``) with extra, hidden
 effects (``fe.effects``) at a design of (clearance, amplitude) cases and writes a
 measurement set in the format of ``validation.measurements`` (``cases.csv`` + one loop
 CSV per case) and a ``manifest.json`` holding the truth (effects and values, meshes, μ,
@@ -35,7 +35,7 @@ import numpy.typing as npt
 from cad.errors import ParameterError, check_range
 from fe.hinge.cycle import CycleResult
 from mesh.settings import MeshSettings
-from validation.model_file import ModelSpec
+from model.spec import ModelSpec
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -355,7 +355,7 @@ def _data_run(
         (cycle result, prepared geometry, the spec used).
     """
     from cad.errors import MeshQualityError
-    from fe.service import DesignPoint
+    from model.spec import DesignPoint
 
     point = DesignPoint(case.amplitude_n, case.clearance_mm, case.preload_n)
     try:
@@ -409,7 +409,7 @@ def _synthesize(
     out: Path,
 ) -> SynthReport:
     from fe.effects import validate_effects
-    from fe.service import ModelService
+    from model.service import ModelService
 
     for c in cases:
         if (c.preload_n is not None) != (spec.kind == "bearing"):

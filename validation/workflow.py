@@ -11,9 +11,9 @@ from typing import Any
 import numpy as np
 
 from cad.errors import DataError, ParameterError
+from model.spec import ModelSpec
 from validation.compare import CompareSettings, Comparison, ModelResult
 from validation.measurements import Case, Loop
-from validation.model_file import ModelSpec
 
 
 def dumps(obj: Any) -> str:
@@ -57,7 +57,7 @@ def _check_cases(spec: ModelSpec, cases: Sequence[Case]) -> None:
 
 def point_of(spec: ModelSpec, case: Case) -> Any:
     """The design point of a case: (clearance, amplitude), or (preload, amplitude) for bearings."""
-    from fe.service import DesignPoint
+    from model.spec import DesignPoint
 
     if spec.kind == "bearing":
         return DesignPoint(case.amplitude_n, preload_n=case.preload_n)
@@ -80,7 +80,7 @@ def run_model_for_cases(
 ) -> tuple[dict[str, ModelResult], dict[tuple[float, float], Any]]:
     """Run the model's cycle at every (clearance or preload, amplitude) of the cases.
 
-    Through the model service (``fe.service.ModelService``; a new one if None): one mesh,
+    Through the model service (``model.service.ModelService``; a new one if None): one mesh,
     one factorisation and one pair of condensed configurations per clearance (one for
     every preload of the bearing hinge), reused for every amplitude there; replicates
     share one run. The model's effects (``spec.effects``, e.g. written by
@@ -89,7 +89,7 @@ def run_model_for_cases(
     Returns:
         (case_id → ModelResult, ``run_key`` → CycleResult).
     """
-    from fe.service import ModelService
+    from model.service import ModelService
 
     service = ModelService() if service is None else service
     points = {c.case_id: point_of(spec, c) for c in cases}

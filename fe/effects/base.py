@@ -110,7 +110,7 @@ class Effect:
         name: Registry name.
         params: Its parameters.
         zero_clearance_reason: Why the effect needs Δr = 0 ("" if it does not).
-        kinds: Hinge kinds (``fe.service.HingeKind`` values) whose solve the effect changes;
+        kinds: Hinge kinds (``model.spec.HingeKind`` values) whose solve the effect changes;
             an effect that acts only on the loop (``apply`` left as the identity) applies
             to every kind (``applies_to``).
     """

@@ -10,7 +10,7 @@ into the contact one with its own friction coefficient ``mu_interface``.
 
 It changes the structure the cycle runs on (another system: the fits' contact points,
 ``fe.bearing.fits``), not a condensed operator, so ``apply`` is never reached for a
-bearing model: ``fe.service.spec.resolve_structural`` rewrites the model as ``interfaces
+bearing model: ``model.spec.resolve_structural`` rewrites the model as ``interfaces
 = "contact"`` with ``cycle.mu = mu_interface`` before anything is built or looked up, and a
 result stored for either spelling serves both. ``mu_interface = 0`` switches the effect
 off (the bonded model as it is); any positive value, however small, is the contact model
@@ -40,7 +40,7 @@ class InterfaceFriction(Effect):
 
     FINGERPRINT (μ_interface = 0.2; coarse bearing mesh: size 4, contact 0.8, ring 1.2 mm;
     10 increments per stage; the bonded model vs the effect, both run through
-    ``fe.service.ModelService``; the slow test in ``tests/fe/bearing/test_interface_friction.py``
+    ``model.service.ModelService``; the slow test in ``tests/fe/bearing/test_interface_friction.py``
     checks every row):
 
     =======  =====  =======  =========  ==========  ============

@@ -99,7 +99,7 @@ REGISTRY: Mapping[str, Effect] = types.MappingProxyType(
 
 
 def effect_ranges() -> dict[str, dict[str, tuple[float, float]]]:
-    """Return effect → parameter → (lo, hi): the shape ``validation.model_file`` checks against."""
+    """Return effect → parameter → (lo, hi): the shape ``model.file`` checks against."""
     return {n: {p.name: (p.lo, p.hi) for p in e.params} for n, e in REGISTRY.items()}
 
 

@@ -62,7 +62,8 @@ def model_file(tmp_path, clearance_mm, increments_per_stage=20, **mesh):
     from cad.general import GeneralHingeParams
     from fe.hinge.cycle import CycleSettings
     from mesh.settings import MeshSettings
-    from validation.model_file import ModelSpec, write_model
+    from model.file import write_model
+    from model.spec import ModelSpec
 
     spec = ModelSpec(
         "general",
@@ -91,7 +92,7 @@ def theirs_mortar(tmp_path, toml, timeout_s=2400.0):
     from cad.general import make_general_hinge
     from fe.effects import REGISTRY
     from mesh.build import mesh_hinge
-    from validation.model_file import read_model
+    from model.file import read_model
 
     spec = read_model(toml, REGISTRY)
     model = make_general_hinge(spec.hinge)

@@ -317,7 +317,7 @@ def test_every_effect_is_documented():
 
 
 def test_model_file_reads_effects_against_the_registry(tmp_path):
-    from validation.model_file import read_model, write_model
+    from model.file import read_model, write_model
 
     path = tmp_path / "MODEL.toml"
     path.write_text(

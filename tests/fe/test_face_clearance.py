@@ -152,7 +152,7 @@ def test_below_the_slip_force_the_pin_is_never_touched(loose):
 
 
 def test_stored_result_keeps_its_slides(slid, tmp_path):
-    from fe.service.store import ResultStore
+    from model.store import ResultStore
 
     store = ResultStore(tmp_path)
     store.put("k", slid.result)

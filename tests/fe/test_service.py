@@ -10,8 +10,10 @@ import pytest
 from cad.errors import ParameterError
 from cad.general import GeneralHingeParams
 from fe.hinge.protocol import CycleSettings
-from fe.service import DesignPoint, ModelService, ModelSpec, ResultStore, result_key
 from mesh.settings import MeshSettings
+from model.service import ModelService
+from model.spec import DesignPoint, ModelSpec, result_key
+from model.store import ResultStore
 
 pytest.importorskip("gmsh")
 

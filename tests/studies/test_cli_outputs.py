@@ -163,7 +163,8 @@ def _model_and_data(tmp_path: Path) -> tuple[Path, Path]:
     from cad.general import GeneralHingeParams
     from fe.hinge.protocol import CycleSettings
     from mesh.settings import MeshSettings
-    from validation.model_file import ModelSpec, write_model
+    from model.file import write_model
+    from model.spec import ModelSpec
 
     spec = ModelSpec(
         "general",
@@ -175,7 +176,10 @@ def _model_and_data(tmp_path: Path) -> tuple[Path, Path]:
     data = tmp_path / "data"
     data.mkdir()
     t = np.linspace(0.0, 2.5 * math.pi, 51)  # 0 → +Fg → −Fg → +Fg
-    force, disp = 300.0 * np.sin(t), 0.05 * np.sin(t - 0.3)  # far softer and lossier than the model (δ lags F)
+    force, disp = (
+        300.0 * np.sin(t),
+        0.05 * np.sin(t - 0.3),
+    )  # far softer and lossier than the model (δ lags F)
     np.savetxt(
         data / "c1.csv",
         np.column_stack([force, disp]),

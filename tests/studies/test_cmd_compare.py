@@ -21,7 +21,8 @@ def _model_file(path):
     from cad.general import GeneralHingeParams
     from fe.hinge.cycle import CycleSettings
     from mesh.settings import MeshSettings
-    from validation.model_file import ModelSpec, write_model
+    from model.file import write_model
+    from model.spec import ModelSpec
 
     spec = ModelSpec(
         "general",

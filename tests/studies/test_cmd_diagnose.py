@@ -13,7 +13,8 @@ from studies.cli import main
 @pytest.fixture
 def model_path(tmp_path):
     from cad.general import GeneralHingeParams
-    from validation.model_file import ModelSpec, write_model
+    from model.file import write_model
+    from model.spec import ModelSpec
 
     return write_model(ModelSpec("general", GeneralHingeParams()), tmp_path / "MODEL.toml")
 
@@ -89,7 +90,7 @@ def test_diagnose_prints_json(model_path, tmp_path, stubs, capsys):
 
 def test_calibrate_writes_model_ledger_and_plot(model_path, tmp_path, stubs, capsys):
     from fe.effects import REGISTRY
-    from validation.model_file import read_model
+    from model.file import read_model
 
     out = tmp_path / "cal"
     argv = [

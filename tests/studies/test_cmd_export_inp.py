@@ -9,8 +9,9 @@ import pytest
 from cad.general import GeneralHingeParams
 from fe.hinge.cycle import CycleSettings
 from mesh.settings import MeshSettings
+from model.file import write_model
+from model.spec import ModelSpec
 from studies.cli import main
-from validation.model_file import ModelSpec, write_model
 
 pytest.importorskip("gmsh")
 

@@ -34,7 +34,8 @@ def model_path(tmp_path_factory):
     from cad.general import GeneralHingeParams
     from fe.hinge.cycle import CycleSettings
     from mesh.settings import MeshSettings
-    from validation.model_file import ModelSpec, write_model
+    from model.file import write_model
+    from model.spec import ModelSpec
 
     spec = ModelSpec(
         "general",

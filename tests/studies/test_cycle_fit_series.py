@@ -13,8 +13,9 @@ import pytest
 from cad.bearing import BearingHingeParams, Interfaces
 from fe.hinge.protocol import CycleSettings
 from mesh.settings import MeshSettings
+from model.file import write_model
+from model.spec import ModelSpec
 from studies.cli import main
-from validation.model_file import ModelSpec, write_model
 
 pytest.importorskip("gmsh")
 COARSE = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2),)}

@@ -21,7 +21,20 @@ def _rows(path):
 
 
 def _sweep(out, *extra):
-    return main(["sweep", "--clearance", "0", "--amplitude", "300", *FAST, "--out", str(out), "--json", *extra])
+    return main(
+        [
+            "sweep",
+            "--clearance",
+            "0",
+            "--amplitude",
+            "300",
+            *FAST,
+            "--out",
+            str(out),
+            "--json",
+            *extra,
+        ]
+    )
 
 
 def test_compare_reads_a_model_file_with_effects(tmp_path, capsys):
@@ -31,8 +44,9 @@ def test_compare_reads_a_model_file_with_effects(tmp_path, capsys):
     from cad.general import GeneralHingeParams
     from fe.hinge.cycle import CycleSettings
     from mesh.settings import MeshSettings
+    from model.file import write_model
+    from model.spec import ModelSpec
     from validation.measurements import Case
-    from validation.model_file import ModelSpec, write_model
     from validation.workflow import run_model_for_cases
 
     base = ModelSpec(
@@ -67,7 +81,12 @@ def test_compare_reads_a_model_file_with_effects(tmp_path, capsys):
     # the effect is on: without it the model would be far stiffer than these data
     assert abs(case["errors"]["disp_at_peak_mm"]) < 0.01
     bare = write_model(base, tmp_path / "BARE.toml")
-    assert main(["compare", str(bare), str(data), "--out", str(tmp_path / "b"), "--json", "--no-plots"]) == 0
+    assert (
+        main(
+            ["compare", str(bare), str(data), "--out", str(tmp_path / "b"), "--json", "--no-plots"]
+        )
+        == 0
+    )
     (bare_case,) = json.loads(capsys.readouterr().out)["cases"]
     assert not bare_case["passed"]
 
@@ -89,7 +108,7 @@ def test_sweep_resumed_with_another_mu_recomputes(tmp_path, capsys):
 
 
 def test_interrupted_sweep_keeps_finished_points_and_resumes(tmp_path, monkeypatch, capsys):
-    from fe.service.runner import ModelService
+    from model.service import ModelService
 
     real = ModelService._compute
     calls = []
@@ -117,7 +136,17 @@ def test_interrupted_sweep_keeps_finished_points_and_resumes(tmp_path, monkeypat
 
 def test_duplicate_levels_run_once(tmp_path, capsys):
     out = tmp_path / "s"
-    args = ["sweep", "--clearance", "0,0.0", "--amplitude", "300,300", *FAST, "--out", str(out), "--json"]
+    args = [
+        "sweep",
+        "--clearance",
+        "0,0.0",
+        "--amplitude",
+        "300,300",
+        *FAST,
+        "--out",
+        str(out),
+        "--json",
+    ]
     assert main(args) == 0
     summary = json.loads(capsys.readouterr().out)
     assert (summary["ok"], summary["failed"], summary["skipped"]) == (1, 0, 0)

@@ -55,7 +55,7 @@ def _wait_for_workers(address: str, n: int, timeout_s: float = 60.0) -> None:
 
 @pytest.mark.slow
 def test_study_on_an_existing_cluster_equals_the_serial_run(tmp_path, capsys):
-    from fe.service import ResultStore
+    from model.store import ResultStore
 
     study = tmp_path / "study.toml"
     study.write_text(STUDY)

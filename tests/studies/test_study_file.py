@@ -148,7 +148,7 @@ def test_bad_study_is_one_line_and_exit_1(tmp_path, capsys):
 def test_study_runs_fits_retries_failed(tmp_path, capsys, monkeypatch):
     pytest.importorskip("gmsh")
     from cad.errors import ConvergenceError
-    from fe.service.runner import ModelService
+    from model.service import ModelService
 
     path = _write(tmp_path, ONE_CLEARANCE)
     out = tmp_path / "out"
@@ -304,7 +304,7 @@ def test_bearing_dry_run_prints_preloads(tmp_path, capsys):
 def test_sweep_points_follow_the_hinge_kind():
     """Explicit points are (clearance, amplitude) on the general hinge, (preload, amplitude)
     on the bearing hinge; the general hinge's points and keys are unchanged."""
-    from fe.service import DesignPoint
+    from model.spec import DesignPoint
     from studies.sweep import SweepSettings
 
     bearing = SweepSettings(

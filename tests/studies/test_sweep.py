@@ -24,7 +24,7 @@ def rows(path):
 
 def test_sweep_records_failures_goes_on_and_resumes(tmp_path, monkeypatch):
     from cad.errors import ConvergenceError
-    from fe.service.runner import ModelService
+    from model.service import ModelService
 
     settings = SweepSettings(
         clearances_mm=(0.0,),
@@ -37,7 +37,9 @@ def test_sweep_records_failures_goes_on_and_resumes(tmp_path, monkeypatch):
 
     def flaky(self, spec, point, prepared, progress):
         if point.amplitude_n == 250.0:
-            raise ConvergenceError("amplitude_n 250 refused by the test", increment=3, iteration=60, residual=1e-3)
+            raise ConvergenceError(
+                "amplitude_n 250 refused by the test", increment=3, iteration=60, residual=1e-3
+            )
         return real(self, spec, point, prepared, progress)
 
     monkeypatch.setattr(ModelService, "_compute", flaky)

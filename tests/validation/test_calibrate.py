@@ -55,8 +55,8 @@ def test_ledger_appends_rounds_and_plots(tmp_path):
 
 def test_calibrate_refuses_unknown_or_present_effects():
     from cad.general import GeneralHingeParams
+    from model.spec import ModelSpec
     from validation.measurements import MeasurementSet
-    from validation.model_file import ModelSpec
 
     spec = ModelSpec(
         "general", GeneralHingeParams(), effects={"frame_compliance": {"compliance_mm_per_n": 1e-5}}
@@ -72,8 +72,8 @@ def test_evaluator_set_mu_keeps_its_increments_and_takes_the_new_mu():
     import dataclasses
 
     from cad.general import GeneralHingeParams
+    from model.spec import ModelSpec
     from validation.evaluate import ModelEvaluator
-    from validation.model_file import ModelSpec
 
     spec = ModelSpec("general", GeneralHingeParams())
     ev = ModelEvaluator(spec, [(0.0, 100.0)], increments_per_stage=6)
@@ -88,13 +88,17 @@ def test_ledger_records_every_parameter_of_the_model(tmp_path):
     import dataclasses
 
     from cad.general import GeneralHingeParams
+    from model.file import read_model, write_model
+    from model.spec import ModelSpec
     from validation.calibrate import model_parameters
-    from validation.model_file import ModelSpec, read_model, write_model
 
     spec = ModelSpec(
         "general",
         GeneralHingeParams(),
-        effects={"frame_compliance": {"compliance_mm_per_n": 3.97e-5}, "interference": {"interference_mm": 0.002}},
+        effects={
+            "frame_compliance": {"compliance_mm_per_n": 3.97e-5},
+            "interference": {"interference_mm": 0.002},
+        },
     )
     spec = dataclasses.replace(spec, cycle=dataclasses.replace(spec.cycle, mu=0.17))
     params = model_parameters(spec)
@@ -104,7 +108,9 @@ def test_ledger_records_every_parameter_of_the_model(tmp_path):
         "interference.interference_mm": 0.002,
     }
     assert model_parameters(read_model(write_model(spec, tmp_path / "M.toml"))) == params
-    row = LedgerRow("+interference", {"interference.interference_mm": 0.002}, 2, 1.0, 1.0, 1.0, 5.0, 6.0, params)
+    row = LedgerRow(
+        "+interference", {"interference.interference_mm": 0.002}, 2, 1.0, 1.0, 1.0, 5.0, 6.0, params
+    )
     append_ledger(tmp_path, [row])
     header, line = (tmp_path / "ledger.csv").read_text().splitlines()
     assert header.endswith(",model")

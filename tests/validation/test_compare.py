@@ -130,7 +130,10 @@ def test_record_uncertainty_follows_the_noise_of_the_record():
     assert c_clean.uncertainty_source == "record ⊕ floor"
     assert c_clean.uncertainty["secant_stiffness_N_per_mm"] == pytest.approx(0.02, rel=0.05)
     assert "disp_at_peak_mm" in c_clean.failed
-    assert c_noisy.uncertainty["secant_stiffness_N_per_mm"] > 2 * c_clean.uncertainty["secant_stiffness_N_per_mm"]
+    assert (
+        c_noisy.uncertainty["secant_stiffness_N_per_mm"]
+        > 2 * c_clean.uncertainty["secant_stiffness_N_per_mm"]
+    )
     assert "secant_stiffness_N_per_mm" not in c_noisy.failed
 
 
@@ -138,10 +141,14 @@ def test_eta_only_sigma_is_the_one_diagnose_uses():
     from validation.candidate_fit import measured_features
     from validation.features import FeatureSettings
 
-    ms = MeasurementSet(tuple(case(f"e{a:g}", a, eta=0.02 + a * 1e-4) for a in (100.0, 400.0)), Path("."))
+    ms = MeasurementSet(
+        tuple(case(f"e{a:g}", a, eta=0.02 + a * 1e-4) for a in (100.0, 400.0)), Path(".")
+    )
     cmp = compare({c.case_id: model(c.amplitude_n) for c in ms.cases}, ms)
     meas = measured_features(ms, FeatureSettings())
-    for c, (eta, s_eta) in zip(cmp.cases, zip(meas.values[:, 1], meas.sigma[:, 1], strict=True), strict=True):
+    for c, (eta, s_eta) in zip(
+        cmp.cases, zip(meas.values[:, 1], meas.sigma[:, 1], strict=True), strict=True
+    ):
         assert c.uncertainty["eta"] == pytest.approx(s_eta / eta, rel=1e-12)
 
 

@@ -20,7 +20,7 @@ def _spec(mesh: dict, increments: int):  # type: ignore[no-untyped-def]
     from cad.bearing import BearingHingeParams, Interfaces
     from fe.hinge.protocol import CycleSettings
     from mesh.settings import MeshSettings
-    from validation.model_file import ModelSpec
+    from model.spec import ModelSpec
 
     return ModelSpec(
         "bearing",
@@ -50,8 +50,9 @@ def test_bearing_cases_are_checked_against_the_model_kind(tmp_path):
 
 @pytest.mark.slow
 def test_compare_passes_a_bearing_loop_from_another_mesh_and_fails_a_wrong_one(tmp_path, capsys):
-    from fe.service import DesignPoint, ModelService
-    from validation.model_file import write_model
+    from model.file import write_model
+    from model.service import ModelService
+    from model.spec import DesignPoint
 
     data_spec = _spec(DATA_MESH, 16)
     service = ModelService()
@@ -86,8 +87,9 @@ def test_calibrate_recovers_mu_of_the_fits_from_eta_only_bearing_data(tmp_path, 
     """η-only bearing data (a Table-4-like file) made with μ = 0.3 on a finer mesh; the
     coarse model starts at μ = 0.15. Measured on the first run: μ → 0.312, error 2.16σ →
     0.28σ, compare 2/2."""
-    from fe.service import DesignPoint, ModelService
-    from validation.model_file import write_model
+    from model.file import write_model
+    from model.service import ModelService
+    from model.spec import DesignPoint
 
     data_spec = _spec(DATA_MESH, 16)
     truth = dataclasses.replace(data_spec, cycle=dataclasses.replace(data_spec.cycle, mu=0.3))
@@ -120,7 +122,8 @@ def test_diagnose_names_a_frame_compliance_hidden_in_bearing_loops(tmp_path):
     """Loops of the tied bearing hinge from a finer mesh, with a test-frame compliance of
     2e-5 mm/N added outside ``synth``, resampled and noised: diagnose must name it, and only
     the effects that act on a loop are candidates for the bearing hinge."""
-    from fe.service import DesignPoint, ModelService
+    from model.service import ModelService
+    from model.spec import DesignPoint
     from validation.diagnose import DiagnoseSettings, diagnose
     from validation.measurements import read_measurement_set
 

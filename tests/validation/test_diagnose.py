@@ -177,7 +177,7 @@ def spec():
     from cad.general import GeneralHingeParams
     from fe.hinge.cycle import CycleSettings
     from mesh.settings import MeshSettings
-    from validation.model_file import ModelSpec
+    from model.spec import ModelSpec
 
     return ModelSpec(
         "general",

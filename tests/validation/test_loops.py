@@ -163,7 +163,9 @@ def test_inputs_not_modified():
 def test_reversed_displacement_sign_is_refused_by_name():
     F, d = ellipse_record(200)
     process_loop(F, d, "ok")  # the right way round
-    with pytest.raises(DataError, match=r"reversed\.csv: the displacement falls .* flip the displacement"):
+    with pytest.raises(
+        DataError, match=r"reversed\.csv: the displacement falls .* flip the displacement"
+    ):
         process_loop(F, -d, "reversed.csv")
 
 

@@ -10,7 +10,8 @@ from cad.general import GeneralHingeParams
 from cad.materials import Material
 from fe.hinge.cycle import CycleSettings
 from mesh.settings import MeshSettings
-from validation.model_file import ModelSpec, read_model, with_clearance, write_model
+from model.file import read_model, write_model
+from model.spec import ModelSpec, with_clearance
 
 REGISTRY = {
     "interference": {"delta_mm": (0.0, 0.05)},
@@ -189,14 +190,19 @@ def test_refusals_name_the_key(tmp_path, text, error, match):
 def test_default_registry_is_the_solvers(tmp_path):
     """Without a registry argument every effect the solver knows is accepted (what calibrate
     writes must read back in compare); NO_EFFECTS still refuses them all."""
-    from validation.model_file import NO_EFFECTS
+    from model.file import NO_EFFECTS
 
-    ok = write(tmp_path, '[hinge]\nkind = "general"\n[effects.frame_compliance]\ncompliance_mm_per_n = 2e-5\n')
+    ok = write(
+        tmp_path,
+        '[hinge]\nkind = "general"\n[effects.frame_compliance]\ncompliance_mm_per_n = 2e-5\n',
+    )
     assert dict(read_model(ok).effects) == {"frame_compliance": {"compliance_mm_per_n": 2e-5}}
     with pytest.raises(ParameterError, match=r"known effects: \(none yet\)"):
         read_model(ok, NO_EFFECTS)
     bad = write(tmp_path, '[hinge]\nkind = "general"\n[effects.interference]\ndelta_mm = 0.01\n')
-    with pytest.raises(ParameterError, match=r"unknown key\(s\) \['delta_mm'\]; allowed: interference_mm"):
+    with pytest.raises(
+        ParameterError, match=r"unknown key\(s\) \['delta_mm'\]; allowed: interference_mm"
+    ):
         read_model(bad)
 
 

@@ -47,7 +47,9 @@ def test_uninformative_features_leave_chi2_and_n():
     model = vals.copy()
     model[:, 1] /= 3.0
     c_noisy, c_every = chi2(model, noisy), chi2(model, every)
-    assert c_noisy == pytest.approx(c_every - np.sum(((model - vals)[:, 1] / sig[:, 1])[[c > 0 for c, _ in pts]] ** 2))
+    assert c_noisy == pytest.approx(
+        c_every - np.sum(((model - vals)[:, 1] / sig[:, 1])[[c > 0 for c, _ in pts]] ** 2)
+    )
     limit_noisy = stats.chi2.ppf(0.99, noisy.n_obs)
     assert c_noisy > limit_noisy  # detected once the uninformative features stop diluting it
 

@@ -83,7 +83,9 @@ def test_machine_path_crosses_the_free_play_at_zero_force():
         d, [0.0, 0.1, 0.101, 0.1002, -0.1, -0.101, -0.1002, 0.1, 0.101], rtol=0, atol=1e-15
     )
     # the record the machine makes of it never moves faster than its crosshead limit
-    quiet = SynthSettings(noise_force_n=0.0, noise_disp_mm=0.0, force_offset_n=0.0, disp_offset_mm=0.0)
+    quiet = SynthSettings(
+        noise_force_n=0.0, noise_disp_mm=0.0, force_offset_n=0.0, disp_offset_mm=0.0
+    )
     m = measure(F, d, quiet, 0)
     speed = np.abs(np.diff(m.displacement_mm)) / np.diff(m.time_s)
     assert speed.max() <= quiet.disp_rate_mm_per_s * (1 + 1e-9)
@@ -153,9 +155,9 @@ def test_true_model_passes_compare_on_synthetic_data_with_clearance(tmp_path):
     from cad.general import GeneralHingeParams
     from fe.hinge.protocol import CycleSettings
     from mesh.settings import MeshSettings
+    from model.spec import ModelSpec
     from validation.compare import compare
     from validation.measurements import read_measurement_set
-    from validation.model_file import ModelSpec
     from validation.synth import design_cases, synthesize
     from validation.workflow import run_model_for_cases
 
@@ -176,7 +178,7 @@ def _coarse_spec():
     from cad.general import GeneralHingeParams
     from fe.hinge.protocol import CycleSettings
     from mesh.settings import MeshSettings
-    from validation.model_file import ModelSpec
+    from model.spec import ModelSpec
 
     return ModelSpec(
         "general",
@@ -193,7 +195,9 @@ def test_synth_adapts_a_data_mesh_that_distorts_and_says_so(tmp_path):
     from validation.synth import design_cases, synthesize
 
     out = tmp_path / "set"
-    report = synthesize(_coarse_spec(), {}, design_cases([(0.3, (200.0,))]), SynthSettings(seed=1), out)
+    report = synthesize(
+        _coarse_spec(), {}, design_cases([(0.3, (200.0,))]), SynthSettings(seed=1), out
+    )
     assert "0.3" in report.manifest["mesh_adapted"]
     assert "scaled Jacobian" in report.manifest["mesh_adapted"]["0.3"]
     assert (out / "cases.csv").is_file()
@@ -215,10 +219,18 @@ def test_a_failing_synth_leaves_no_partial_set(tmp_path, monkeypatch):
     monkeypatch.setattr(synth, "_data_run", fail_second)
     out = tmp_path / "set"
     with pytest.raises(synth.ParameterError, match="refused by the test"):
-        synth.synthesize(_coarse_spec(), {}, synth.design_cases([(0.0, (100.0, 200.0))]), SynthSettings(), out)
+        synth.synthesize(
+            _coarse_spec(), {}, synth.design_cases([(0.0, (100.0, 200.0))]), SynthSettings(), out
+        )
     assert not out.exists()
     assert list(tmp_path.iterdir()) == []
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "notes.txt").write_text("keep")
     with pytest.raises(synth.ParameterError, match="not a synthetic set"):
-        synth.synthesize(_coarse_spec(), {}, synth.design_cases([(0.0, (100.0,))]), SynthSettings(), tmp_path / "mine")
+        synth.synthesize(
+            _coarse_spec(),
+            {},
+            synth.design_cases([(0.0, (100.0,))]),
+            SynthSettings(),
+            tmp_path / "mine",
+        )

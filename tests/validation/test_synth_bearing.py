@@ -21,7 +21,7 @@ def _bonded(increments=8):  # type: ignore[no-untyped-def]
     from cad.bearing import BearingHingeParams
     from fe.hinge.protocol import CycleSettings
     from mesh.settings import MeshSettings
-    from validation.model_file import ModelSpec
+    from model.spec import ModelSpec
 
     return ModelSpec(
         "bearing",
@@ -65,10 +65,10 @@ def test_bearing_set_from_a_finer_mesh_with_a_hidden_frame(tmp_path, capsys):
     """Through the CLI: two cases of the tied bearing hinge with a hidden frame compliance;
     the set reads back as bearing data whose peak displacement exceeds the coarse model's by
     the frame's C_f·Fg (to the mesh difference and the noise), and compare says so."""
+    from model.file import write_model
     from studies.cli import main
     from validation.compare import compare
     from validation.measurements import read_measurement_set
-    from validation.model_file import write_model
     from validation.workflow import run_model_for_cases
 
     model = write_model(_bonded(), tmp_path / "MODEL.toml")

@@ -61,10 +61,12 @@ def test_frictional_fits_dissipate_and_the_energy_balance_closes(
         assert fx == pytest.approx(force, rel=2e-3)
     pre = table["preload"]
     sin_a = [np.sin(np.radians(b["contact_angle_deg"])) for b in pre]
-    axial_1 = sum(b["inner_load_N"] * s for b, s in zip(pre, sin_a, strict=True) if b["bearing"] == 1)
+    axial_1 = sum(
+        b["inner_load_N"] * s for b, s in zip(pre, sin_a, strict=True) if b["bearing"] == 1
+    )
     assert axial_1 == pytest.approx(100.0, rel=1e-6)  # the plate force F_p
     # and the balls survive the result store
-    from fe.service import ResultStore
+    from model.store import ResultStore
 
     store = ResultStore(tmp_path)
     store.put("k" * 64, result)

@@ -195,9 +195,9 @@ def test_the_rig_is_cached_by_grid_and_bearing(tmp_path, params, rig, monkeypatc
 
 def test_full_balls_with_frictional_fits_are_refused_by_name():
     from fe.hinge.protocol import CycleSettings
-    from fe.service import ModelService, ModelSpec
-    from fe.service.spec import DesignPoint
     from mesh.settings import MeshSettings
+    from model.service import ModelService
+    from model.spec import DesignPoint, ModelSpec
 
     hinge = BearingHingeParams(ball_model=BallModel.FULL, interfaces=Interfaces.CONTACT)
     spec = ModelSpec("bearing", hinge, MeshSettings.for_hinge("bearing", balls=False),

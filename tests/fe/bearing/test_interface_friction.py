@@ -13,10 +13,9 @@ from cad.errors import ParameterError
 from cad.general import GeneralHingeParams
 from fe.effects import REGISTRY, InterfaceFriction
 from fe.hinge.protocol import CycleSettings
-from fe.service import DesignPoint, ModelService, check_spec, geometry_key, result_key
-from fe.service.spec import resolve_structural
 from mesh.settings import MeshSettings
-from validation.model_file import ModelSpec
+from model.service import ModelService, check_spec
+from model.spec import DesignPoint, ModelSpec, geometry_key, resolve_structural, result_key
 
 COARSE = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2),)}
 
@@ -76,7 +75,7 @@ def test_it_is_refused_where_it_means_nothing():
 
 
 def test_model_file_round_trip(tmp_path):
-    from validation.model_file import read_model, write_model
+    from model.file import read_model, write_model
 
     spec = _bonded(interface_friction={"mu_interface": 0.25})
     back = read_model(write_model(spec, tmp_path / "MODEL.toml"), REGISTRY)

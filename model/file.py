@@ -38,8 +38,8 @@ from typing import Any
 from cad.errors import DataError, ParameterError, check_range
 from cad.materials import Material
 from fe.hinge.protocol import CycleSettings
-from fe.service.spec import HINGE_PARAMS, HingeParams, ModelSpec, with_clearance
 from mesh.settings import MeshSettings
+from model.spec import HINGE_PARAMS, HingeParams, ModelSpec, with_clearance
 
 __all__ = [
     "HINGE_PARAMS",
@@ -303,7 +303,7 @@ def write_model(spec: ModelSpec, path: Path | str) -> Path:
     """
     path = Path(path)
     h = spec.hinge
-    out = ["# hingelab model file (read by validation.model_file.read_model)", "", "[hinge]"]
+    out = ["# hingelab model file (read by model.file.read_model)", "", "[hinge]"]
     out += [f"kind = {_toml_value(spec.kind)}"]
     out += _lines({k: getattr(h, k) for k in _plain_fields(type(h))})
     for f in fields(h):

@@ -7,7 +7,7 @@ Every command that runs the model (``cycle``, ``sweep``, ``compare``, ``synth``,
   assembled, factorised and condensed once (``prepare``; the nodal compliances are kept
   on disk by the mesh's content hash when ``cache_dir`` is given) and reused for every
   amplitude, μ and effect run on it;
-* every point's result is keyed by ``fe.service.spec.result_key``; with a ``ResultStore``
+* every point's result is keyed by ``model.spec.result_key``; with a ``ResultStore``
   a point whose key is stored is read back instead of computed (a rerun with identical
   inputs costs nothing; any changed input is another key and recomputes), and a newly
   computed point is stored atomically the moment it finishes, before ``on_result`` is
@@ -36,8 +36,8 @@ from fe.hinge.condensed import Condensed
 from fe.hinge.cycle import run_cycle
 from fe.hinge.result import CycleResult
 from fe.hinge.system import HingeSystem, build_system
-from fe.service.geometry import MeshedHinge, build_and_mesh
-from fe.service.spec import (
+from mesh.meshed import MeshedHinge, build_and_mesh
+from model.spec import (
     INTERFACE_FRICTION,
     DesignPoint,
     HingeKind,
@@ -48,7 +48,7 @@ from fe.service.spec import (
     result_key,
     structure_of,
 )
-from fe.service.store import ResultStore
+from model.store import ResultStore
 
 logger = logging.getLogger(__name__)
 

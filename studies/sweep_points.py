@@ -1,0 +1,136 @@
+"""One sweep point's files and trace record, and the service that runs a sweep's points.
+
+Shared by the in-process sweep (``studies.sweep``) and its Dask workers
+(``studies.sweep_dask``), so neither imports the other's internals.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import asdict
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from studies.sweep import SweepSettings
+
+
+def point_params(p: Any) -> dict[str, float]:
+    """The trace parameters of a design point (preload or clearance, and amplitude)."""
+    if p.preload_n is not None:
+        return {"preload_N": p.preload_n, "amplitude_N": p.amplitude_n}
+    return {"clearance_mm": p.clearance_mm, "amplitude_N": p.amplitude_n}
+
+
+def geometry_folder(out: Path) -> Callable[[float], Path]:
+    """Where a sweep writes the files of the geometry with a given clearance."""
+    return lambda clearance: out / "geometry" / f"c{clearance:.3f}"
+
+
+def mesh_stats_of(prepared: Any) -> dict[str, Any]:
+    """The mesh figures a point's trace record keeps, from a prepared geometry."""
+    r = prepared.meshed.report
+    return {
+        "n_hex": r.n_hex,
+        "n_nodes": r.n_nodes,
+        "min_scaled_jacobian": r.min_scaled_jacobian,
+        "hex_fraction": r.hex_fraction,
+    }
+
+
+def point_record(
+    run: Any,
+    settings: SweepSettings,
+    out: Path,
+    *,
+    mesh_stats: dict[str, Any] | None = None,
+    lu_threads: int | None = None,
+) -> dict[str, Any]:
+    """Write a point's files (loop CSV/PNG, result.json) and return its trace record.
+
+    Args:
+        run: The point's ``model.service.PointRun``.
+        settings: The sweep.
+        out: The sweep's folder.
+        mesh_stats: Mesh figures when ``run.prepared`` is None (a point run elsewhere).
+        lu_threads: The LU thread count of the process that ran it (default: this one's).
+    """
+    from fe.hinge.report import write_loop_csv, write_loop_png
+    from studies.pipeline import dumps, strict_json
+
+    if lu_threads is None:
+        from fe.contact import newton
+
+        lu_threads = int(newton.LU_THREADS)
+    spec = settings.spec()
+
+    p = run.point
+    folder = out / "points" / p.label()
+    folder.mkdir(parents=True, exist_ok=True)
+    geo = out / "geometry" / f"c{p.clearance_mm:.3f}"
+    artifacts: dict[str, Any] = {
+        "step": geo / "hinge.step",
+        "mesh_msh": geo / "mesh.msh",
+        "mesh_vtu": geo / "mesh.vtu",
+        "mesh_png": geo / "mesh.png",
+    }
+    artifacts = {k: v for k, v in artifacts.items() if v.is_file()}
+    mesh_stats = mesh_stats_of(run.prepared) if run.prepared is not None else (mesh_stats or {})
+    rec: dict[str, Any] = {
+        "study": settings.study,
+        "params": point_params(p),
+        "solver": {
+            "result_key": run.key,
+            "mu": spec.cycle.mu,
+            "increments_per_stage": spec.cycle.increments_per_stage,
+            "clearance_increments": spec.cycle.clearance_increments,
+            "mesh": asdict(spec.mesh),
+            "effects": {k: dict(v) for k, v in spec.effects.items()},
+            "lu_threads": lu_threads,  # this worker's share of the cores (timings depend on it)
+            "cached": run.cached,
+        },
+        "mesh_stats": mesh_stats,
+        "artifacts": artifacts,
+    }
+    if run.ok:
+        result = run.result
+        what = (
+            f"bearing hinge ({spec.hinge.interfaces.value}), Fp = {p.preload_n:g} N"
+            if p.preload_n is not None
+            else f"general hinge, Δr = {p.clearance_mm:g} mm"
+        )
+        title = f"{what}, Fg = {p.amplitude_n:g} N, μ = {spec.cycle.mu:g}"
+        artifacts["loop_csv"] = write_loop_csv(result, folder / "loop.csv")
+        artifacts["loop_png"] = write_loop_png(result, folder / "loop.png", title=title)
+        # NaN (η of a loop without energy) becomes null: strict JSON, and no NaN in the table
+        rec["results"] = strict_json(
+            {k: v for k, v in result.metrics().items() if isinstance(v, float)}
+        ) | {"wall_s": run.wall_s}
+        rec["convergence"] = strict_json(
+            {
+                "increments": len(result.increments),
+                "iterations": [i.iterations for i in result.increments],
+                "timings_s": result.timings_s,
+            }
+        )
+        rec["status"], rec["error"] = "ok", None
+    else:
+        if run.partial is not None and run.partial.increments:
+            artifacts["loop_csv"] = write_loop_csv(run.partial, folder / "loop_partial.csv")
+        rec["results"], rec["convergence"] = {}, {}
+        rec["status"], rec["error"] = "failed", run.error
+    (folder / "result.json").write_text(dumps({k: v for k, v in rec.items() if k != "artifacts"}))
+    return rec
+
+
+def sweep_service(out: Path) -> Any:
+    """The model service of a sweep folder: results and compliances kept, one geometry at a time."""
+    from model.service import ModelService
+    from model.store import ResultStore
+
+    return ModelService(
+        store=ResultStore(out / "results"),
+        cache_dir=out / "cache",
+        geometry_dir=geometry_folder(out),
+        max_geometries=1,
+    )
