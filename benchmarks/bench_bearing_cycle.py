@@ -21,7 +21,7 @@ import numpy as np
 
 from cad.bearing import BearingHingeParams
 from fe.hinge.protocol import CycleSettings
-from mesh.settings import MeshSettings
+from fe.kinds import hinge_kind
 from model.service import ModelService
 from model.spec import DesignPoint, ModelSpec
 
@@ -47,12 +47,12 @@ def main() -> None:
     spec = ModelSpec(
         "bearing",
         BearingHingeParams(),
-        MeshSettings.for_hinge("bearing", balls=False, refinement=args.refinement),
+        hinge_kind("bearing").mesh_settings(refinement=args.refinement),
         CycleSettings(),
     )
     service = ModelService()
     t0 = time.perf_counter()
-    prepared = service.prepare(spec, 0.0)
+    prepared = service.prepare(spec, DesignPoint(spec.cycle.amplitude_n))
     setup = time.perf_counter() - t0
     system = prepared.system
     lines = [
@@ -68,7 +68,7 @@ def main() -> None:
     for fp in PRELOADS:
         for fg in AMPLITUDES:
             t = time.perf_counter()
-            r = service.run_point(spec, DesignPoint(fg, preload_n=fp))
+            r = service.run_point(spec, DesignPoint(fg, {"preload_n": fp}))
             wall = time.perf_counter() - t
             m = r.metrics()
             its = [i.iterations for i in r.increments]

@@ -22,6 +22,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from fe.kinds import hinge_kind
+
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from benchmarks._common import print_table, run_isolated
@@ -52,23 +54,20 @@ def run_model(
     from fe.bearing.full_cycle import run_full_cycle
     from fe.bearing.one_ball import MESH_LEVELS
     from fe.hinge.protocol import CycleSettings
-    from mesh.settings import MeshSettings
     from model.service import ModelService
-    from model.spec import ModelSpec
+    from model.spec import DesignPoint, ModelSpec
 
     hinge = BearingHingeParams(ball_model=BallModel(model))
     spec = ModelSpec(
         "bearing",
         hinge,
-        MeshSettings.for_hinge(
-            "bearing", balls=False, refinement=refinement, **(COARSE if coarse else {})
-        ),
+        hinge_kind("bearing").mesh_settings(refinement=refinement, **(COARSE if coarse else {})),
         CycleSettings(mu=mu),
     )
     out: dict[str, Any] = {"model": model, "cases": []}
     with threadpool_limits(1, user_api="blas"):
         t0 = time.perf_counter()
-        prepared = ModelService().prepare(spec, 0.0)
+        prepared = ModelService().prepare(spec, DesignPoint(spec.cycle.amplitude_n))
         out["setup_s"] = time.perf_counter() - t0
         system = prepared.system
         out["structure_dof"] = 3 * prepared.meshed.report.n_nodes

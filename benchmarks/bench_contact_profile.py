@@ -123,8 +123,8 @@ def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict
         CycleSettings(amplitude_n=400.0, blas_threads=1),
     )
     service = ModelService()
-    service.prepare(spec, clearance_mm)
-    res = service.run_point(spec, DesignPoint(400.0, clearance_mm))
+    service.prepare(spec, DesignPoint(400.0, {"clearance_mm": clearance_mm}))
+    res = service.run_point(spec, DesignPoint(400.0, {"clearance_mm": clearance_mm}))
     for row, inc in zip(rows, res.increments, strict=False):
         row["stage"] = inc.stage
     first = True

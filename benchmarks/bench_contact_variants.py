@@ -71,7 +71,7 @@ def _prepare(level: int, condense: bool = True) -> tuple[Any, Any, Any]:
     from fe.hinge.cycle import CycleSettings, configurations
     from mesh.settings import MeshSettings
     from model.service import ModelService
-    from model.spec import ModelSpec
+    from model.spec import DesignPoint, ModelSpec
 
     spec = ModelSpec(
         "general",
@@ -79,7 +79,7 @@ def _prepare(level: int, condense: bool = True) -> tuple[Any, Any, Any]:
         MeshSettings(refinement=level),
         CycleSettings(amplitude_n=400.0, blas_threads=1),
     )
-    system = ModelService().prepare(spec, 0.0).system
+    system = ModelService().prepare(spec, DesignPoint(spec.cycle.amplitude_n)).system
     return spec, system, configurations(system, 0.0) if condense else None
 
 

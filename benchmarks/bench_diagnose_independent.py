@@ -44,7 +44,7 @@ def _truth_paths() -> dict[tuple[float, float], tuple[np.ndarray, np.ndarray, fl
     service = ModelService()
     out = {}
     for c, a in DESIGN:
-        r = service.run_point(spec, DesignPoint(a, c))
+        r = service.run_point(spec, DesignPoint(a, {"clearance_mm": c}))
         F, d = r.machine_path()
         out[(c, a)] = (F, d, r.metrics()["W_cycle_Nmm"])
     return out

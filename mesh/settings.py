@@ -103,33 +103,3 @@ class MeshSettings:
         converged η (see benchmarks/bench_cycle.py for the levels).
         """
         return cls(**{"size_mm": 4.0, "contact_size_mm": 2.0, **overrides})  # type: ignore[arg-type]
-
-    @classmethod
-    def for_hinge(cls, kind: str, *, balls: bool = True, **overrides: float | int) -> MeshSettings:
-        """Return the default settings of a hinge kind, with any field overridden.
-
-        The bearing hinge's 4 mm balls and thin rings need their own sizes, and its
-        ball–raceway contact patches (Hertz radius ≈ 0.15 mm at 200 N preload) a far
-        finer contact size than the pin and holes of the general hinge; these defaults
-        mesh it in about 80 s (benchmarks/bench_bearing_mesh.py). Without meshed balls
-        (``balls=False``: the ``hertz`` ball model, whose contact is a closed form) the
-        raceway patches only average the ring's displacement, and 0.4 mm there gives a
-        62k-node structure meshed in ~3 s.
-        """
-        if kind == "bearing":
-            base: dict[str, object] = {
-                "size_mm": 2.5,
-                "contact_size_mm": 0.15 if balls else 0.4,
-                "slave_ratio": 1.5,
-                "part_sizes_mm": (
-                    ("ball", 0.6),
-                    ("ring", 0.8),
-                    ("pin", 1.2),
-                    ("preload_plate", 1.2),
-                ),
-            }
-        elif kind == "general":
-            base = {}
-        else:
-            raise ParameterError(f"hinge kind must be 'general' or 'bearing', got {kind!r}")
-        return cls(**{**base, **overrides})  # type: ignore[arg-type]

@@ -3,8 +3,9 @@
 Sections (every key optional except ``[hinge] kind``; an absent key keeps the
 dataclass default)::
 
-    [hinge]            kind = "general" | "bearing", then the fields of
-                       GeneralHingeParams / BearingHingeParams (lengths in mm)
+    [hinge]            kind = a registered hinge kind ("general", "bearing", or one from
+                       an installed package, ``fe.kinds``), then the fields of its
+                       parameter dataclass (GeneralHingeParams, BearingHingeParams; mm)
     [materials.lug]    name, young_mpa, poisson   (one table per *_material field:
     [materials.pin]     lug, pin, and bearing for the bearing hinge)
     [mesh]             the fields of MeshSettings; [mesh.part_sizes_mm] "fragment" = size
@@ -38,18 +39,11 @@ from typing import Any
 from cad.errors import DataError, ParameterError, check_range
 from cad.materials import Material
 from fe.hinge.protocol import CycleSettings
+from fe.kinds import hinge_kind
 from mesh.settings import MeshSettings
-from model.spec import HINGE_PARAMS, HingeParams, ModelSpec, with_clearance
+from model.spec import ModelSpec
 
-__all__ = [
-    "HINGE_PARAMS",
-    "NO_EFFECTS",
-    "HingeParams",
-    "ModelSpec",
-    "read_model",
-    "with_clearance",
-    "write_model",
-]
+__all__ = ["NO_EFFECTS", "read_model", "write_model"]
 
 
 class _Param(typing.Protocol):
@@ -241,12 +235,15 @@ def read_model(path: Path | str, registry: EffectRegistry | None = None) -> Mode
         raise DataError(f"{path}: not valid TOML: {err}") from err
     _check_keys(doc, list(SECTIONS), str(path))
     hinge = _table(doc, "hinge", str(path))
-    kind = hinge.get("kind")
-    if kind not in HINGE_PARAMS:
-        raise ParameterError(
-            f"{_where(path, 'hinge')}: kind must be one of {list(HINGE_PARAMS)}, got {kind!r}"
-        )
-    cls = HINGE_PARAMS[kind]
+    try:
+        if not isinstance(hinge.get("kind"), str):
+            raise ParameterError(
+                f"kind must be the name of a hinge kind, got {hinge.get('kind')!r}"
+            )
+        kind = hinge_kind(hinge["kind"]).name
+    except ParameterError as err:
+        raise ParameterError(f"{_where(path, 'hinge')}: {err}") from err
+    cls = hinge_kind(kind).params_type
     geometry = _read_section(
         cls, {k: v for k, v in hinge.items() if k != "kind"}, _where(path, "hinge")
     )

@@ -21,32 +21,27 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import math
 import time
 from collections import OrderedDict
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from cad.errors import HingelabError, ParameterError
-from fe.bearing.fits import FitSystem
-from fe.bearing.system import BearingSystem, build_bearing_system
-from fe.hinge.condensed import Condensed
-from fe.hinge.cycle import run_cycle
 from fe.hinge.result import CycleResult
-from fe.hinge.system import HingeSystem, build_system
-from mesh.meshed import MeshedHinge, build_and_mesh
+from fe.kinds import Built
+from mesh.meshed import MeshedHinge
 from model.spec import (
-    INTERFACE_FRICTION,
     DesignPoint,
-    HingeKind,
     ModelSpec,
     geometry_key,
     hinge_at,
+    point_label,
     resolve_structural,
     result_key,
-    structure_of,
+    structure_at,
+    structure_label,
 )
 from model.store import ResultStore
 
@@ -55,27 +50,27 @@ logger = logging.getLogger(__name__)
 
 @dataclass
 class Prepared:
-    """One geometry, meshed, factorised and ready to be condensed and cycled.
+    """One geometry, built by its kind, ready for cycles.
 
     Attributes:
         key: Its geometry key.
-        clearance_mm: Its radial clearance [mm] (from the model's exact cylinders).
-        meshed: The CAD model, mesh, quality report and the files written.
-        system: The factorised hinge (``BearingSystem`` for the bearing hinge).
-        configs: Condensed configurations of plain cycles by contact window
-            (``CycleSettings.contact_window``), once a cycle has made them.
-        effect_configs: Condensed configurations without window that effects start from
-            (``fe.effects.run_cycle_with_effects``), once a cycle with effects has made them.
+        built: What the kind built (``fe.kinds.Built``: its system, mesh and caches).
         setup_s: Wall time of building, meshing and factorising [s].
     """
 
     key: str
-    clearance_mm: float
-    meshed: MeshedHinge
-    system: HingeSystem | BearingSystem | FitSystem
-    configs: dict[float, dict[int, Condensed]] = field(default_factory=dict)
-    effect_configs: dict[int, Condensed] | None = None
+    built: Built
     setup_s: float = 0.0
+
+    @property
+    def system(self) -> Any:
+        """The kind's system object."""
+        return self.built.system
+
+    @property
+    def meshed(self) -> MeshedHinge | None:
+        """The CAD model, mesh and files (None for a kind without a mesh)."""
+        return self.built.meshed
 
 
 @dataclass(frozen=True)
@@ -112,60 +107,22 @@ def check_spec(spec: ModelSpec) -> None:
     """Refuse a specification the service cannot run, naming what is wrong.
 
     Raises:
-        ParameterError: For a bearing-hinge model choice whose cycle is not implemented
-            (``ball_model = "full"`` with frictional fits: ``interfaces = "contact"`` or
-            the ``interface_friction`` effect), an effect that does not act on the model's
-            hinge kind (``fe.effects.Effect.applies_to``), or ``interface_friction`` on
-            fits that are contacts already.
+        ParameterError: For an effect that does not act on the model's hinge kind
+            (``fe.effects.Effect.applies_to``), or a combination the kind refuses
+            (``HingeKind.check``).
     """
-    from cad.bearing import BallModel, BearingHingeParams, Interfaces
-    from fe.effects import REGISTRY
+    from fe.effects.registry import REGISTRY
 
+    kind = spec.hinge_kind
     other = sorted(
-        n for n in spec.effects if n in REGISTRY and not REGISTRY[n].applies_to(spec.kind)
+        n for n in spec.effects if n in REGISTRY and not REGISTRY[n].applies_to(kind.name)
     )
-    if other and spec.kind == HingeKind.BEARING:
-        raise ParameterError(
-            f"effects {other} act on the general hinge's pin contacts; the bearing hinge "
-            "takes effects applied to its loop (e.g. frame_compliance) and interface_friction"
-        )
     if other:
+        fitting = sorted(n for n in REGISTRY if REGISTRY[n].applies_to(kind.name))
         raise ParameterError(
-            f"effects {other} act on the bearing hinge's bonded interfaces; the {spec.kind} "
-            "hinge has none (use kind = 'bearing')"
+            f"effects {other} do not act on the {kind.title}; effects that do: {fitting}"
         )
-    if spec.kind != HingeKind.BEARING or not isinstance(spec.hinge, BearingHingeParams):
-        return
-    if spec.hinge.ball_model is BallModel.FULL and spec.hinge.interfaces is Interfaces.CONTACT:
-        raise ParameterError(
-            "ball_model = 'full' runs with interfaces = 'bonded' only (the frictional fits' "
-            "cycle takes hertz balls), got ball_model = 'full' with interfaces = 'contact'"
-        )
-    if spec.hinge.ball_model is BallModel.FULL and INTERFACE_FRICTION in spec.effects:
-        raise ParameterError(
-            f"ball_model = 'full' runs with bonded interfaces only, got ball_model = 'full' "
-            f"with effects.{INTERFACE_FRICTION} (frictional fits take hertz balls)"
-        )
-    if INTERFACE_FRICTION in spec.effects and spec.hinge.interfaces is Interfaces.CONTACT:
-        raise ParameterError(
-            f"effects.{INTERFACE_FRICTION} makes bonded interfaces frictional, but interfaces = "
-            "'contact' already: their friction coefficient is the model's mu"
-        )
-
-
-def _post_only(result: CycleResult, effects: Any) -> CycleResult:
-    """The bearing hinge's cycle with its (loop-only) effects applied to δ.
-
-    The tangent stiffness kept for the Hermite loop rule no longer holds once δ changes, so
-    it is dropped (the trapezoid is used).
-    """
-    if not effects:
-        return result
-    from fe.effects.registry import post_increments, validate_effects
-
-    out = post_increments(result, validate_effects(effects))
-    incs = tuple(dataclasses.replace(i, stiffness_n_per_mm=math.nan) for i in out.increments)
-    return dataclasses.replace(out, increments=incs)
+    kind.check(spec.hinge, spec.effects)
 
 
 class ModelService:
@@ -175,7 +132,7 @@ class ModelService:
         store: Where results are kept by key (None: nothing is kept between runs).
         cache_dir: Where nodal compliances are kept by mesh hash (None: in memory only).
         geometry_dir: Folder for a geometry's STEP, mesh and picture files, given its
-            clearance [mm] (None: no files).
+            label (``model.spec.structure_label``, e.g. ``c0.100``; None: no files).
         max_geometries: Prepared geometries kept in memory (the least recently used is
             dropped); None keeps all (a diagnosis revisits every clearance).
     """
@@ -185,7 +142,7 @@ class ModelService:
         *,
         store: ResultStore | None = None,
         cache_dir: Path | None = None,
-        geometry_dir: Callable[[float], Path] | None = None,
+        geometry_dir: Callable[[str], Path] | None = None,
         max_geometries: int | None = None,
     ) -> None:
         self.store = store
@@ -198,38 +155,18 @@ class ModelService:
         self.setup_s = 0.0
         self.cycle_s = 0.0
 
-    def prepare(self, spec: ModelSpec, clearance_mm: float) -> Prepared:
-        """Build, mesh and factorise the geometry of ``spec`` at ``clearance_mm`` (memoised)."""
-        from cad.general import GeneralHingeParams, make_general_hinge
-
+    def prepare(self, spec: ModelSpec, point: DesignPoint) -> Prepared:
+        """Build, mesh and factorise the geometry of ``spec`` at ``point`` (memoised)."""
         check_spec(spec)
         spec = resolve_structural(spec)
-        key = geometry_key(spec, clearance_mm)
+        key = geometry_key(spec, point)
         if key in self._prepared:
             self._prepared.move_to_end(key)
             return self._prepared[key]
         t0 = time.perf_counter()
-        hinge = structure_of(spec, clearance_mm)
-        out = None if self.geometry_dir is None else self.geometry_dir(clearance_mm)
-        system: HingeSystem | BearingSystem | FitSystem
-        if isinstance(hinge, GeneralHingeParams):
-            meshed = build_and_mesh(make_general_hinge(hinge), spec.mesh, out)
-            system = build_system(meshed.mesh, cache_dir=self.cache_dir)
-            clearance = system.clearance_mm
-        else:
-            from cad.bearing import Interfaces, make_bearing_hinge, without_balls
-
-            model = without_balls(make_bearing_hinge(hinge))
-            if hinge.interfaces is Interfaces.CONTACT:
-                from fe.bearing.fits import build_fit_system, with_frictional_fits
-
-                meshed = build_and_mesh(with_frictional_fits(model), spec.mesh, out)
-                system = build_fit_system(meshed.mesh, hinge)
-            else:
-                meshed = build_and_mesh(model, spec.mesh, out)
-                system = build_bearing_system(meshed.mesh, hinge)
-            clearance = 0.0
-        prepared = Prepared(key, clearance, meshed, system)
+        out = None if self.geometry_dir is None else self.geometry_dir(structure_label(spec, point))
+        built = spec.hinge_kind.build(structure_at(spec, point), spec.mesh, out, self.cache_dir)
+        prepared = Prepared(key, built)
         prepared.setup_s = time.perf_counter() - t0
         self.setup_s += prepared.setup_s
         self._prepared[key] = prepared
@@ -265,7 +202,7 @@ class ModelService:
             if hit is not None:
                 self.n_cached += 1
                 return hit
-        prepared = self.prepare(spec, point.clearance_mm)
+        prepared = self.prepare(spec, point)
         result = self._compute(spec, point, prepared, progress)
         if self.store is not None:
             self.store.put(key, result)
@@ -281,43 +218,9 @@ class ModelService:
         settings = dataclasses.replace(spec.cycle, amplitude_n=point.amplitude_n)
         t0 = time.perf_counter()
         try:
-            if isinstance(prepared.system, FitSystem):
-                from fe.bearing.fit_cycle import run_fit_cycle
-
-                hinge = hinge_at(spec, point)
-                preload = float(getattr(hinge, "preload_n", 0.0))
-                fit = run_fit_cycle(prepared.system, settings, preload, progress=progress)[0]
-                return _post_only(fit, spec.effects)
-            if isinstance(prepared.system, BearingSystem):
-                from fe.bearing.cycle import run_bearing_cycle
-
-                hinge = hinge_at(spec, point)
-                preload = float(getattr(hinge, "preload_n", 0.0))
-                result = run_bearing_cycle(
-                    prepared.system, settings, preload, progress=progress
-                ).result
-                return _post_only(result, spec.effects)
-            if spec.effects:
-                from fe.effects import run_cycle_with_effects
-
-                with_effects = run_cycle_with_effects(
-                    prepared.system,
-                    prepared.clearance_mm,
-                    settings,
-                    spec.effects,
-                    configs=prepared.effect_configs,
-                )
-                prepared.effect_configs = with_effects.base_configs
-                return with_effects.result
-            result = run_cycle(
-                prepared.system,
-                prepared.clearance_mm,
-                settings,
-                configs=prepared.configs.get(settings.contact_window),
-                progress=progress,
+            return spec.hinge_kind.run(
+                prepared.built, hinge_at(spec, point), settings, spec.effects, progress
             )
-            prepared.configs[settings.contact_window] = result.configs
-            return result
         finally:
             self.n_computed += 1
             self.cycle_s += time.perf_counter() - t0
@@ -347,30 +250,28 @@ class ModelService:
         unique: dict[str, DesignPoint] = {}
         for p in points:
             unique.setdefault(result_key(spec, p), p)
-        groups: dict[float, list[tuple[str, DesignPoint]]] = {}
+        groups: dict[str, list[tuple[str, DesignPoint]]] = {}
         for key, p in unique.items():
-            groups.setdefault(p.clearance_mm, []).append((key, p))
+            groups.setdefault(geometry_key(spec, p), []).append((key, p))
         out: list[PointRun] = []
-        for clearance, members in groups.items():
+        for members in groups.values():
             for key, p in members:
-                run = self._one(spec, key, p, clearance, keep_going)
+                run = self._one(spec, key, p, keep_going)
                 out.append(run)
                 if on_result is not None:
                     on_result(run)
         return out
 
-    def _one(
-        self, spec: ModelSpec, key: str, p: DesignPoint, clearance: float, keep_going: bool
-    ) -> PointRun:
+    def _one(self, spec: ModelSpec, key: str, p: DesignPoint, keep_going: bool) -> PointRun:
         hit = None if self.store is None else self.store.get(key)
         if hit is not None:
             self.n_cached += 1
-            prepared = self._peek(spec, clearance)
+            prepared = self._prepared.get(geometry_key(spec, p))
             return PointRun(p, key, hit, cached=True, prepared=prepared)
         t0 = time.perf_counter()
         prepared = None
         try:
-            prepared = self.prepare(spec, clearance)
+            prepared = self.prepare(spec, p)
             result = self._compute(spec, p, prepared, None)
             if self.store is not None:
                 self.store.put(key, result)
@@ -381,7 +282,7 @@ class ModelService:
             partial = getattr(err, "partial", None)
             where = "geometry" if prepared is None else "point"
             msg = f"{where} failed: {type(err).__name__}: {err}"
-            logger.error("%s: %s", p.label(), msg)
+            logger.error("%s: %s", point_label(spec, p), msg)
             return PointRun(
                 p,
                 key,
@@ -392,18 +293,16 @@ class ModelService:
                 wall_s=time.perf_counter() - t0,
             )
 
-    def _peek(self, spec: ModelSpec, clearance: float) -> Prepared | None:
-        return self._prepared.get(geometry_key(spec, clearance))
-
 
 def design_points(
-    clearances_mm: Iterable[float], amplitudes_n: Iterable[float]
+    values: Iterable[Mapping[str, float]], amplitudes_n: Iterable[float]
 ) -> list[DesignPoint]:
-    """The full factorial clearance × amplitude, duplicates removed, in order."""
-    seen: dict[tuple[float, float], DesignPoint] = {}
+    """The full factorial design values × amplitude, duplicates removed, in order.
+
+    Args:
+        values: Design-variable values of each level, e.g. ``[{"clearance_mm": 0.1}]``.
+        amplitudes_n: Force amplitudes [N].
+    """
     amps = list(amplitudes_n)
-    for c in clearances_mm:
-        for a in amps:
-            p = DesignPoint(amplitude_n=a, clearance_mm=c)
-            seen.setdefault((p.clearance_mm, p.amplitude_n), p)
-    return list(seen.values())
+    points = [DesignPoint(a, v) for v in values for a in amps]
+    return list(dict.fromkeys(points))

@@ -20,30 +20,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from cad.bearing import BearingHingeParams
 from cad.errors import ParameterError, check_range
-from cad.general import GeneralHingeParams
 from fe.contact import ContactSettings
 from fe.hinge.protocol import CycleSettings
+from fe.kinds import HingeKind, hinge_kind
 from mesh.settings import MeshSettings
-
-HingeParams = GeneralHingeParams | BearingHingeParams
-
-
-class HingeKind(enum.StrEnum):
-    """The hinges the project models."""
-
-    GENERAL = "general"
-    """Tang, clevis and a steel pin with radial clearance (the paper's general hinge)."""
-    BEARING = "bearing"
-    """The pin in a preloaded pair of angular-contact ball bearings (the modified hinge)."""
-
-
-HINGE_PARAMS: dict[str, type[GeneralHingeParams] | type[BearingHingeParams]] = {
-    HingeKind.GENERAL.value: GeneralHingeParams,
-    HingeKind.BEARING.value: BearingHingeParams,
-}
-"""Hinge kind → its parameter dataclass."""
 
 
 @dataclass(frozen=True)
@@ -51,15 +32,16 @@ class ModelSpec:
     """A complete hinge model.
 
     Attributes:
-        kind: Hinge kind (``general`` or ``bearing``).
-        hinge: Geometry and materials.
+        kind: Name of a registered hinge kind (``fe.kinds``: ``general``, ``bearing``, or a
+            kind from an installed package); checked on construction.
+        hinge: The kind's parameters (geometry, materials, options).
         mesh: Mesh settings.
         cycle: Load protocol and solver options, including the friction coefficient μ.
         effects: Enabled effect → its parameters (read-only mappings).
     """
 
     kind: str
-    hinge: HingeParams
+    hinge: Any
     mesh: MeshSettings = field(default_factory=MeshSettings)
     cycle: CycleSettings = field(default_factory=CycleSettings)
     effects: Mapping[str, Mapping[str, float]] = field(
@@ -67,135 +49,146 @@ class ModelSpec:
     )
 
     def __post_init__(self) -> None:
-        if self.kind not in HINGE_PARAMS:
-            raise ParameterError(f"kind must be one of {tuple(HINGE_PARAMS)}, got {self.kind!r}")
-        if not isinstance(self.hinge, HINGE_PARAMS[self.kind]):
+        kind = hinge_kind(self.kind)
+        object.__setattr__(self, "kind", kind.name)
+        if not isinstance(self.hinge, kind.params_type):
             raise ParameterError(
-                f"kind {self.kind!r} needs {HINGE_PARAMS[self.kind].__name__}, "
+                f"kind {kind.name!r} needs {kind.params_type.__name__}, "
                 f"got {type(self.hinge).__name__}"
             )
         frozen = {k: types.MappingProxyType(dict(v)) for k, v in self.effects.items()}
         object.__setattr__(self, "effects", types.MappingProxyType(frozen))
 
+    @property
+    def hinge_kind(self) -> HingeKind:
+        """The registered kind object."""
+        return hinge_kind(self.kind)
+
 
 @dataclass(frozen=True)
 class DesignPoint:
-    """One point of a design study.
+    """One point of a design study: the force amplitude and the kind's design variables.
 
     Attributes:
         amplitude_n: Force amplitude Fg [N].
-        clearance_mm: Radial clearance Δr of the general hinge [mm].
-        preload_n: Axial preload F_p of the bearing hinge [N]; None: the model's own.
+        values: Design variable name (``fe.kinds.DesignVariable.name``, e.g.
+            ``clearance_mm``) → value; an absent variable keeps the model's own value.
     """
 
     amplitude_n: float
-    clearance_mm: float = 0.0
-    preload_n: float | None = None
+    values: Mapping[str, float] = field(default_factory=lambda: types.MappingProxyType({}))
 
     def __post_init__(self) -> None:
         check_range("amplitude_n", self.amplitude_n, 0.0, 1e6, lo_open=True)
-        check_range("clearance_mm", self.clearance_mm, 0.0, 10.0)
         # 0.0 and -0.0, 300 and 300.0 are one point (one key, one run)
         object.__setattr__(self, "amplitude_n", float(self.amplitude_n) + 0.0)
-        object.__setattr__(self, "clearance_mm", float(self.clearance_mm) + 0.0)
-        if self.preload_n is not None:
-            check_range("preload_n", self.preload_n, 0.0, 500.0)
-            object.__setattr__(self, "preload_n", float(self.preload_n) + 0.0)
+        clean = {}
+        for name, value in sorted(self.values.items()):
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int | float)
+                or not math.isfinite(value)
+            ):
+                raise ParameterError(f"{name} must be a finite number, got {value!r}")
+            clean[str(name)] = float(value) + 0.0
+        object.__setattr__(self, "values", types.MappingProxyType(clean))
 
-    def label(self) -> str:
-        """Folder name of the point, e.g. ``c0.100_F300`` or ``p100_F300``."""
-        if self.preload_n is not None:
-            return f"p{self.preload_n:g}_F{self.amplitude_n:g}"
-        return f"c{self.clearance_mm:.3f}_F{self.amplitude_n:g}"
+    def __hash__(self) -> int:
+        return hash((self.amplitude_n, tuple(self.values.items())))
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, DesignPoint):
+            return NotImplemented
+        return self.amplitude_n == other.amplitude_n and dict(self.values) == dict(other.values)
+
+    def __reduce__(self) -> tuple[Any, ...]:  # mappingproxy does not pickle (Dask sends points)
+        return (DesignPoint, (self.amplitude_n, dict(self.values)))
 
     def key_fields(self) -> dict[str, float]:
-        """What identifies the point in a result key.
-
-        No preload entry when it is None, so the general hinge's keys do not change.
-        """
-        out = {"amplitude_n": self.amplitude_n, "clearance_mm": self.clearance_mm}
-        if self.preload_n is not None:
-            out["preload_n"] = self.preload_n
-        return out
+        """What identifies the point in a result key: the amplitude and every value."""
+        return {"amplitude_n": self.amplitude_n, **self.values}
 
 
-def with_clearance(spec: ModelSpec, clearance_mm: float) -> HingeParams:
-    """Return the spec's hinge parameters at another radial clearance (general hinge).
+def complete_point(spec: ModelSpec, point: DesignPoint) -> DesignPoint:
+    """The point with every design variable of the spec's kind, checked against its range.
 
-    The bearing hinge has no clearance: its parameters are returned as they are for 0.
+    An absent variable takes the model's own value, so a point names its geometry fully.
 
     Raises:
-        ParameterError: For a clearance on the bearing hinge, or an out-of-range value.
+        ParameterError: For a variable the kind does not have, or a value out of range.
     """
-    if not isinstance(spec.hinge, GeneralHingeParams):
-        if clearance_mm != 0.0:
-            raise ParameterError(
-                f"clearance_mm must be 0 for the {spec.kind} hinge (it has none), "
-                f"got {clearance_mm!r}"
-            )
-        return spec.hinge
-    return dataclasses.replace(spec.hinge, clearance_mm=clearance_mm)
-
-
-def hinge_at(spec: ModelSpec, point: DesignPoint) -> HingeParams:
-    """The hinge parameters at a design point (its clearance, its preload if it has one).
-
-    Raises:
-        ParameterError: For a preload on the general hinge or a clearance on the bearing one.
-    """
-    hinge = with_clearance(spec, point.clearance_mm)
-    if point.preload_n is None:
-        return hinge
-    if not isinstance(hinge, BearingHingeParams):
+    kind = spec.hinge_kind
+    variables = {v.name: v for v in kind.design_variables}
+    unknown = sorted(set(point.values) - set(variables))
+    if unknown:
+        allowed = ", ".join(variables) or "(none: only the amplitude)"
         raise ParameterError(
-            f"preload_n applies to the bearing hinge only, got {point.preload_n!r} "
-            f"for the {spec.kind} hinge"
+            f"{unknown[0]} is not a design variable of the {kind.title}, got "
+            f"{unknown[0]} = {point.values[unknown[0]]!r}; it has: {allowed}"
         )
-    return dataclasses.replace(hinge, preload_n=point.preload_n)
+    values = {
+        name: var.check(point.values.get(name, getattr(spec.hinge, name)))
+        for name, var in variables.items()
+    }
+    return DesignPoint(point.amplitude_n, values)
 
 
-def structure_of(spec: ModelSpec, clearance_mm: float) -> HingeParams:
-    """The hinge parameters that determine the mesh and its condensation.
+def point_label(spec: ModelSpec, point: DesignPoint) -> str:
+    """Folder name of the point, e.g. ``c0.100_F300`` (general) or ``p100_F300`` (bearing)."""
+    point = complete_point(spec, point)
+    parts = [f"{v.tag}{point.values[v.name]:{v.fmt}}" for v in spec.hinge_kind.design_variables]
+    return "_".join([*parts, f"F{point.amplitude_n:g}"])
 
-    The bearing hinge's preload is a load on an unchanged structure, so every preload
-    shares one geometry (one factorisation).
+
+def describe_point(spec: ModelSpec, point: DesignPoint) -> str:
+    """The point in words, e.g. ``general hinge, Δr = 0.1 mm, Fg = 300 N, μ = 0.2``."""
+    values = complete_point(spec, point).values
+    kind = spec.hinge_kind
+    what = [kind.title, *(v.text(values[v.name]) for v in kind.design_variables)]
+    return ", ".join([*what, f"Fg = {point.amplitude_n:g} N", f"μ = {spec.cycle.mu:g}"])
+
+
+def structure_label(spec: ModelSpec, point: DesignPoint) -> str:
+    """Folder name of the point's geometry: its structural variables (``c0.100``), or ``base``."""
+    point = complete_point(spec, point)
+    parts = [
+        f"{v.tag}{point.values[v.name]:{v.fmt}}"
+        for v in spec.hinge_kind.design_variables
+        if v.structural
+    ]
+    return "_".join(parts) or "base"
+
+
+def hinge_at(spec: ModelSpec, point: DesignPoint) -> Any:
+    """The hinge parameters at a design point (each design variable set to the point's value).
+
+    Raises:
+        ParameterError: For a variable the kind does not have, or a value out of range.
     """
-    hinge = with_clearance(spec, clearance_mm)
-    if isinstance(hinge, BearingHingeParams):
-        return dataclasses.replace(hinge, preload_n=0.0)
-    return hinge
+    values = complete_point(spec, point).values
+    return dataclasses.replace(spec.hinge, **values) if values else spec.hinge
 
 
-INTERFACE_FRICTION = "interface_friction"
-"""The effect that swaps the bearing hinge's structure (``fe.effects.interfaces``)."""
+def structure_at(spec: ModelSpec, point: DesignPoint) -> Any:
+    """The hinge parameters that determine the mesh and its factorisation at ``point``.
+
+    A load-like variable (the bearing hinge's preload) does not change the structure, so
+    every value of it shares one geometry (one factorisation).
+    """
+    return spec.hinge_kind.structure(hinge_at(spec, point))
 
 
 def resolve_structural(spec: ModelSpec) -> ModelSpec:
     """The model with its structure-changing effects written as the structure they make.
 
-    ``interface_friction`` on a bonded bearing hinge (``mu_interface > 0``) becomes
-    ``interfaces = "contact"`` with ``cycle.mu = mu_interface`` (the hertz balls carry no
-    friction, so the model's μ acts on nothing else); at 0 the effect is off and only
-    dropped. Every other spec is returned as it is, so keys and stored results are those
-    of the model the cycle really runs.
+    The kind decides (``HingeKind.resolve``; e.g. the bearing hinge's
+    ``interface_friction`` becomes frictional fits): keys and stored results are those of
+    the model the cycle really runs.
     """
-    values = spec.effects.get(INTERFACE_FRICTION)
-    if values is None or not isinstance(spec.hinge, BearingHingeParams):
+    hinge, cycle, effects = spec.hinge_kind.resolve(spec.hinge, spec.cycle, spec.effects)
+    if hinge is spec.hinge and cycle is spec.cycle and effects is spec.effects:
         return spec
-    from cad.bearing import Interfaces
-
-    if spec.hinge.interfaces is not Interfaces.BONDED:
-        return spec  # refused by check_spec, with the reason
-    rest = {k: v for k, v in spec.effects.items() if k != INTERFACE_FRICTION}
-    mu = float(values.get("mu_interface", 0.0))
-    if mu == 0.0:
-        return dataclasses.replace(spec, effects=rest)
-    return dataclasses.replace(
-        spec,
-        hinge=dataclasses.replace(spec.hinge, interfaces=Interfaces.CONTACT),
-        cycle=dataclasses.replace(spec.cycle, mu=mu),
-        effects=rest,
-    )
+    return dataclasses.replace(spec, hinge=hinge, cycle=cycle, effects=effects)
 
 
 def package_version() -> str:
@@ -233,13 +226,13 @@ def content_hash(obj: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def geometry_key(spec: ModelSpec, clearance_mm: float) -> str:
-    """Hash of what the mesh and its condensation depend on (not the load or μ)."""
+def geometry_key(spec: ModelSpec, point: DesignPoint) -> str:
+    """Hash of what the mesh and its condensation depend on at ``point`` (not the load or μ)."""
     spec = resolve_structural(spec)
     return content_hash(
         {
             "kind": spec.kind,
-            "hinge": structure_of(spec, clearance_mm),
+            "hinge": structure_at(spec, point),
             "mesh": spec.mesh,
             "version": package_version(),
         }
@@ -262,7 +255,7 @@ def result_key(spec: ModelSpec, point: DesignPoint) -> str:
             "mesh": spec.mesh,
             "cycle": cycle,
             "effects": spec.effects,
-            "point": point.key_fields(),
+            "point": complete_point(spec, point).key_fields(),
             "contact": ContactSettings(),
             "version": package_version(),
         }

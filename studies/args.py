@@ -4,16 +4,20 @@ from __future__ import annotations
 
 import argparse
 import os
+from typing import Any
 
 from cad.errors import ParameterError
+from fe.kinds import DEFAULT_KIND, hinge_kind, kind_names
 from mesh.settings import MeshSettings
-from studies.pipeline import HINGES
 
 
 def add_geometry_arguments(p: argparse.ArgumentParser) -> None:
     """Add the options that choose a hinge and its mesh (shared with ``cycle``)."""
     p.add_argument(
-        "--hinge", choices=HINGES, default="general", help="hinge kind (default: general)"
+        "--hinge",
+        choices=kind_names(),
+        default=None,
+        help=f"hinge kind, a registered one (default: {DEFAULT_KIND})",
     )
     p.add_argument(
         "--clearance",
@@ -75,20 +79,20 @@ def add_cluster_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def settings_from_args(args: argparse.Namespace, *, balls: bool = True) -> MeshSettings:
+def settings_from_args(args: argparse.Namespace, *, cycle: bool = True) -> MeshSettings:
     """Return mesh settings from the parsed options.
 
     Args:
         args: The options (``--hinge``, ``--refinement``, ``--size``, ``--contact-size``).
-        balls: The bearing hinge's balls are meshed (``ball_model = "full"``, and the
-            ``mesh`` command); False for the ``hertz`` ball model (``MeshSettings.for_hinge``).
+        cycle: The mesh a cycle runs on; False: the whole CAD model's (the ``mesh``
+            command: the bearing hinge's balls too, ``HingeKind.mesh_settings``).
     """
-    kw: dict[str, float | int] = {"refinement": args.refinement}
+    kw: dict[str, Any] = {"refinement": args.refinement}
     if args.size is not None:
         kw["size_mm"] = args.size
     if args.contact_size is not None:
         kw["contact_size_mm"] = args.contact_size
-    return MeshSettings.for_hinge(args.hinge, balls=balls, **kw)
+    return hinge_kind(args.hinge or DEFAULT_KIND).mesh_settings(cycle=cycle, **kw)
 
 
 OPTION_OF_FIELD = {

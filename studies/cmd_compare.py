@@ -114,7 +114,7 @@ def format_table(cmp: Comparison) -> str:
 
     heads = [
         "case",
-        "Δr mm",
+        "design",
         "Fg N",
         *(METRIC_LABELS[m].split(" ")[0] for m in METRICS),
         "σ",
@@ -122,7 +122,7 @@ def format_table(cmp: Comparison) -> str:
     ]
     rows = [heads]
     for c in cmp.cases:
-        cells = [c.case.case_id, f"{c.case.clearance_mm:g}", f"{c.case.amplitude_n:g}"]
+        cells = [c.case.case_id, c.case.describe() or "—", f"{c.case.amplitude_n:g}"]
         for m in METRICS:
             if m in c.errors:
                 mark = "*" if m in c.failed else ""

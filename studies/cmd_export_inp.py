@@ -60,24 +60,19 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab export-inp``."""
-    from cad.bearing import make_bearing_hinge
-    from cad.general import GeneralHingeParams, make_general_hinge
     from fe.effects import REGISTRY
     from fe.interop.inp import CYCLE, ContactType, DeckSettings, write_deck
     from mesh.build import mesh_hinge
     from model.file import read_model
-    from model.spec import with_clearance
+    from model.spec import DesignPoint, hinge_at
 
     spec = read_model(args.model, REGISTRY)
     if args.out.suffix.lower() != ".inp":
         raise ParameterError(f"out must end in .inp, got {args.out}")
-    params = spec.hinge if args.clearance is None else with_clearance(spec, args.clearance)
-    if isinstance(params, GeneralHingeParams):
-        model = make_general_hinge(params)
-        clearance = params.clearance_mm
-    else:
-        model = make_bearing_hinge(params)
-        clearance = 0.0
+    values = {} if args.clearance is None else {"clearance_mm": args.clearance}
+    params = hinge_at(spec, DesignPoint(spec.cycle.amplitude_n, values))
+    model = spec.hinge_kind.cad(params)
+    clearance = float(getattr(params, "clearance_mm", 0.0))  # the deck's contact gap
     overrides = {
         k: v
         for k, v in {

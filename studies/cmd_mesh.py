@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 
 from studies.args import add_geometry_arguments, settings_from_args
-from studies.pipeline import build_and_mesh, dumps, make_model, mesh_summary
+from studies.pipeline import dumps, mesh_summary
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -22,9 +22,16 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab mesh``."""
+    from fe.kinds import DEFAULT_KIND, hinge_kind
+    from mesh.meshed import build_and_mesh
+    from studies.options import params_with
+
     t0 = time.perf_counter()
-    settings = settings_from_args(args)
-    model = make_model(args.hinge, clearance_mm=args.clearance, preload_n=args.preload)
+    settings = settings_from_args(args, cycle=False)
+    kind = hinge_kind(args.hinge or DEFAULT_KIND)
+    options = {"clearance_mm": "--clearance", "preload_n": "--preload"}
+    values = {"clearance_mm": args.clearance, "preload_n": args.preload}
+    model = kind.cad(params_with(kind, values, options))
     meshed = build_and_mesh(model, settings, args.out, picture=not args.no_picture)
     summary = mesh_summary(meshed, time.perf_counter() - t0)
     if args.json:

@@ -60,10 +60,10 @@ def _fmt_point(params: dict[str, Any], width: int = 0) -> str:
     return "  ".join(p.ljust(width) for p in parts) if width else ", ".join(parts)
 
 
-def _point_params(point: Any) -> dict[str, float]:
+def _point_params(spec: Any, point: Any) -> dict[str, float]:
     from studies.sweep_points import point_params
 
-    return point_params(point)
+    return point_params(spec, point)
 
 
 def _fmt_s(seconds: float) -> str:
@@ -116,7 +116,7 @@ def _dry_run(plan: list[Any], study: Any, args: argparse.Namespace) -> int:
                 {
                     "study": study.name,
                     "points": [
-                        _point_params(pp.point)
+                        _point_params(study.spec, pp.point)
                         | {
                             "state": pp.state.value,
                             "point_id": pp.point_id,
@@ -132,7 +132,7 @@ def _dry_run(plan: list[Any], study: Any, args: argparse.Namespace) -> int:
     print(f"study {study.name}: {len(plan)} points ({study.design})")
     for pp in plan:
         pid = "" if pp.point_id is None else f"  (trace point {pp.point_id})"
-        print(f"  {_fmt_point(_point_params(pp.point), 16)}{pp.state.value}{pid}")
+        print(f"  {_fmt_point(_point_params(study.spec, pp.point), 16)}{pp.state.value}{pid}")
     print(
         ", ".join(f"{counts.get(s, 0)} {s}" for s in ("done", "stored", "failed", "todo"))
         + " (done: in the trace; stored: read back from results/; failed and todo: run)"

@@ -8,7 +8,9 @@ from pathlib import Path
 
 from cad.errors import ParameterError
 from fe.hinge.protocol import DEFAULT_MU
+from fe.kinds import DEFAULT_KIND, HingeKind, hinge_kind, kind_names
 from studies.args import add_cluster_arguments, add_mesh_arguments, settings_from_args, with_option
+from studies.options import params_with
 from studies.pipeline import dumps
 from studies.sweep import SweepSettings, run_sweep
 
@@ -28,26 +30,33 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )
     p.add_argument(
         "--hinge",
-        choices=("general", "bearing"),
-        default="general",
-        help="general: clearance × amplitude; bearing: preload × amplitude (default general)",
+        choices=kind_names(),
+        default=DEFAULT_KIND,
+        help="a registered hinge kind; its design variable × amplitude is swept "
+        "(general: clearance, bearing: preload; default general)",
+    )
+    p.add_argument(
+        "--levels",
+        default=None,
+        metavar="LIST",
+        help="levels of the kind's design variable (default: the kind's study levels)",
     )
     p.add_argument(
         "--clearance",
         default=None,
         metavar="LIST",
-        help="clearances [mm] of the general hinge (default 0,0.1,0.2,0.3,0.4)",
+        help="clearances [mm] of the general hinge (its levels; default 0,0.1,0.2,0.3,0.4)",
     )
     p.add_argument(
         "--preload",
         default=None,
         metavar="LIST",
-        help="axial preloads [N] of the bearing hinge (default 0,50,100,150,200)",
+        help="axial preloads [N] of the bearing hinge (its levels; default 0,50,100,150,200)",
     )
     p.add_argument(
         "--interfaces",
         choices=("bonded", "contact"),
-        default="bonded",
+        default=None,
         help="bearing hinge: interfaces tied or frictional fits (default bonded)",
     )
     p.add_argument(
@@ -75,7 +84,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument(
         "--study",
         default=None,
-        help="study name in the trace (default general_hinge or bearing_hinge)",
+        help="study name in the trace (default KIND_hinge, e.g. general_hinge)",
     )
     p.add_argument(
         "--out", type=Path, required=True, metavar="DIR", help="output folder (rerun to resume)"
@@ -84,35 +93,49 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.set_defaults(func=run)
 
 
+LEVEL_OPTIONS = {"--clearance": "clearance_mm", "--preload": "preload_n"}
+"""Options that give the levels of a design variable by its name (``--levels`` for any)."""
+
+
+def _levels(args: argparse.Namespace, kind: HingeKind) -> tuple[float, ...] | None:
+    """The levels given on the command line, checked to be the kind's design variable."""
+    names = [v.name for v in kind.design_variables]
+    given = {o: getattr(args, o[2:]) for o in LEVEL_OPTIONS if getattr(args, o[2:]) is not None}
+    if args.levels is not None:
+        given["--levels"] = args.levels
+    for option, text in given.items():
+        field = LEVEL_OPTIONS.get(option)
+        if field is not None and field not in names:
+            raise ParameterError(
+                f"{option} is not a design variable of the {kind.title} (got {option} {text}); "
+                f"its design variables: {', '.join(names) or 'none (amplitude only)'}"
+            )
+    if len(given) > 1:
+        raise ParameterError(f"give the levels once, got {', '.join(given)}")
+    if not given:
+        return None
+    option, text = next(iter(given.items()))
+    return _floats(option.lstrip("-"), text)
+
+
 def _settings(args: argparse.Namespace) -> SweepSettings:
-    bearing = args.hinge == "bearing"
-    if bearing and args.clearance is not None:
-        raise ParameterError(
-            f"--clearance: the bearing hinge has no clearance, got --clearance {args.clearance}; "
-            "sweep --preload instead"
-        )
-    if not bearing and args.preload is not None:
-        raise ParameterError(
-            f"--preload applies to --hinge bearing only, got --preload {args.preload}"
-        )
-    if not bearing and args.interfaces != "bonded":
-        raise ParameterError(
-            f"--interfaces applies to --hinge bearing only, got --interfaces {args.interfaces}"
-        )
-    mesh = settings_from_args(args, balls=not bearing)  # the hertz ball model meshes none
+    kind = hinge_kind(args.hinge)
+    options = params_with(kind, {"interfaces": args.interfaces}, {"interfaces": "--interfaces"})
+    hinge_options = tuple(
+        (name, getattr(options, name)) for name in ("interfaces",) if args.interfaces is not None
+    )
     return SweepSettings(
-        clearances_mm=_floats("clearance", args.clearance or "0,0.1,0.2,0.3,0.4"),
+        levels=_levels(args, kind),
         amplitudes_n=_floats("amplitude", args.amplitude),
         mu=args.mu,
         increments_per_stage=args.increments if args.increments is not None else 20,
         clearance_increments=args.increments if args.increments is not None else 60,
-        mesh=mesh,
+        mesh=settings_from_args(args),
         workers=args.workers,
-        study=args.study or ("bearing_hinge" if bearing else "general_hinge"),
+        study=args.study or f"{kind.name}_hinge",
         scheduler=args.scheduler or None,
-        hinge=args.hinge,
-        preloads_n=_floats("preload", args.preload or "0,50,100,150,200"),
-        interfaces=args.interfaces,
+        hinge=kind.name,
+        hinge_options=hinge_options,
     )
 
 
@@ -152,7 +175,8 @@ def run(args: argparse.Namespace) -> int:
             f"{outcome.failed} failed, {outcome.skipped} already done "
             f"({outcome.wall_s:.0f} s). Trace: {outcome.db}"
         )
-        x = "preload_N,amplitude_N" if args.hinge == "bearing" else "clearance_mm,amplitude_N"
+        columns = [v.column for v in hinge_kind(settings.hinge).design_variables]
+        x = ",".join([*columns, "amplitude_N"])
         print(
             f"next: hingelab rsm fit {outcome.table} --x {x} --y eta --degree 4 "
             f"--trace {outcome.db}"

@@ -3,9 +3,9 @@
 ``hingelab synth MODEL.toml --effect NAME[:PARAM=VALUE[,PARAM=VALUE]] [--effect …]
 --noise-force N --noise-disp MM --seed S [--cases "0:100,400;0.1:100,400"] --out DIR``
 writes ``cases.csv``, ``loops/<case>.csv`` and ``manifest.json`` (the hidden truth)
-into DIR (``validation.synth``). Without ``--cases`` the design is 3 clearances × 3
-amplitudes (``validation.synth.DEFAULT_DESIGN``), or for a bearing-hinge model (kind =
-"bearing") 3 preloads × 3 amplitudes (``DEFAULT_BEARING_DESIGN``; ``--cases`` then reads
+into DIR (``validation.synth``). Without ``--cases`` the design is 3 levels of the
+model's design variable × 3 amplitudes (``validation.synth.default_design``: clearances
+for the general hinge, preloads for the bearing hinge, whose ``--cases`` then reads
 "preload:amp,amp;…" in N). The data come from a finer mesh than
 the model file's (``validation.synth.MESH_RULE``).
 """
@@ -81,10 +81,8 @@ def run(args: argparse.Namespace) -> int:
     from fe.effects import validate_effects
     from model.file import read_model
     from validation.synth import (
-        DEFAULT_BEARING_DESIGN,
-        DEFAULT_DESIGN,
-        DESIGN_VARIABLE,
         SynthSettings,
+        default_design,
         design_cases,
         parse_design,
         synthesize,
@@ -92,9 +90,9 @@ def run(args: argparse.Namespace) -> int:
 
     spec = read_model(args.model)
     hidden = validate_effects(parse_effects(args.effect))
-    default = DEFAULT_BEARING_DESIGN if spec.kind == "bearing" else DEFAULT_DESIGN
-    variable = DESIGN_VARIABLE.get(spec.kind, DESIGN_VARIABLE["general"])[0]
-    design = default if args.cases is None else parse_design(args.cases, variable)
+    variables = spec.hinge_kind.design_variables
+    variable = variables[0].column if variables else "level"
+    design = default_design(spec.kind) if args.cases is None else parse_design(args.cases, variable)
     settings = SynthSettings(
         seed=args.seed, noise_force_n=args.noise_force, noise_disp_mm=args.noise_disp
     )

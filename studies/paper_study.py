@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from fe.kinds import hinge_kind
 from studies import paper_checks
 from studies.pipeline import dumps, strict_json
 
@@ -79,12 +80,13 @@ class PaperStudy:
         """
         if not self.quick and not self.points:
             return {name: self._from_file(name) for name in STUDY_FILES}
+        from cad.bearing import Interfaces
         from mesh.settings import MeshSettings
         from studies.sweep import SweepSettings
 
         amps: tuple[float, ...] = QUICK["amplitudes"] if self.quick else GRID
         general_mesh = MeshSettings.coarse() if self.quick else MeshSettings()
-        bearing_mesh = MeshSettings.for_hinge("bearing", balls=False)
+        bearing_mesh = hinge_kind("bearing").mesh_settings()
         if self.quick:
             bearing_mesh = dataclasses.replace(bearing_mesh, **QUICK_BEARING_MESH)
         clearances: tuple[float, ...] = QUICK["clearances"] if self.quick else CLEARANCES
@@ -93,25 +95,25 @@ class PaperStudy:
             amps, clearances, preloads = amps[: self.points], clearances[:1], preloads[:1]
         return {
             "general": SweepSettings(
-                clearances_mm=clearances, amplitudes_n=amps, mu=self.mu, mesh=general_mesh,
+                levels=clearances, amplitudes_n=amps, mu=self.mu, mesh=general_mesh,
                 workers=self.workers, study="paper_general",
             ),
             "modified": SweepSettings(
-                hinge="bearing", preloads_n=preloads, amplitudes_n=amps, mu=self.mu,
+                hinge="bearing", levels=preloads, amplitudes_n=amps, mu=self.mu,
                 mesh=bearing_mesh, workers=self.workers, study="paper_modified",
-                interfaces=self.interfaces,
+                hinge_options=(("interfaces", Interfaces(self.interfaces)),),
             ),
         }  # fmt: skip
 
     def _from_file(self, name: str) -> Any:
         """One shipped study file's sweep, with this study's μ, interfaces and workers."""
-        from cad.bearing import BearingHingeParams, Interfaces
+        from cad.bearing import Interfaces
         from studies.study_file import read_study
 
         study = read_study(Path(__file__).parent / "examples" / STUDY_FILES[name])
         spec = study.spec
         spec = dataclasses.replace(spec, cycle=dataclasses.replace(spec.cycle, mu=self.mu))
-        if isinstance(spec.hinge, BearingHingeParams):
+        if name == "modified":  # the paper's modified hinge: the bearing kind's interfaces
             hinge = dataclasses.replace(spec.hinge, interfaces=Interfaces(self.interfaces))
             spec = dataclasses.replace(spec, hinge=hinge)
         settings = dataclasses.replace(study, spec=spec).sweep_settings(workers=self.workers)
@@ -291,14 +293,22 @@ def _compute_s(table: Path) -> float | None:
         return None
 
 
+LABEL_NEAR = {"general": 0.1, "modified": 0.0}
+"""The design value near which each case's example loop is shown (Δr 0.1 mm, F_p 0 N)."""
+
+
 def _label(settings: Any, name: str) -> str:
     """The point closest to 400 N (and Δr 0.1 mm / F_p 0) of a sweep, as a folder label."""
-    pts = settings.points()
-    if name == "general":
-        best = min(pts, key=lambda p: (abs(p.amplitude_n - 400), abs(p.clearance_mm - 0.1)))
-    else:
-        best = min(pts, key=lambda p: (abs(p.amplitude_n - 400), abs(p.preload_n or 0.0)))
-    return str(best.label())
+    from model.spec import complete_point, point_label
+
+    spec = settings.spec()
+    variable = spec.hinge_kind.design_variables[0].name
+
+    def distance(p: Any) -> tuple[float, float]:
+        value = complete_point(spec, p).values[variable]
+        return (abs(p.amplitude_n - 400), abs(value - LABEL_NEAR[name]))
+
+    return point_label(spec, min(settings.design_points(), key=distance))
 
 
 def _fmt(v: Any, spec: str = ".4f") -> str:

@@ -54,7 +54,9 @@ def _spec(quick: bool) -> Any:
 def _subset(data: Any, points: tuple[tuple[float, float], ...]) -> Any:
     from validation.measurements import MeasurementSet
 
-    keep = tuple(c for c in data.cases if (c.clearance_mm, c.amplitude_n) in points)
+    keep = tuple(
+        c for c in data.cases if (c.values.get("clearance_mm", 0.0), c.amplitude_n) in points
+    )
     return MeasurementSet(keep, data.root)
 
 
@@ -79,7 +81,7 @@ def run(out: Path, quick: bool) -> dict[str, Any]:
             "n_cases": cmp.summary["n_cases"],
             "cases": [
                 {
-                    "clearance_mm": c.case.clearance_mm,
+                    "clearance_mm": c.case.values.get("clearance_mm", 0.0),
                     "amplitude_N": c.case.amplitude_n,
                     "eta_paper": c.case.eta,
                     "eta_model": c.model["eta"],
@@ -89,7 +91,9 @@ def run(out: Path, quick: bool) -> dict[str, Any]:
             ],
         }
     zero_row = tuple(
-        p for p in {(c.clearance_mm, c.amplitude_n) for c in table1.cases} if p[0] == 0
+        p
+        for p in {(c.values.get("clearance_mm", 0.0), c.amplitude_n) for c in table1.cases}
+        if p[0] == 0
     )
     for label, points in (("diagnose_zero_clearance", zero_row), ("diagnose_3x3", SUBSET)):
         d = diagnose(spec, _subset(table1, points))

@@ -1,4 +1,4 @@
-"""Build → mesh → files: the steps every command and study shares."""
+"""What every command shares: the mesh summary, strict JSON, output-folder and trace checks."""
 
 from __future__ import annotations
 
@@ -8,71 +8,8 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from cad.errors import ParameterError
-
-if TYPE_CHECKING:  # the geometry stack imports build123d (seconds): only where it is used
-    from cad.model import HingeModel
+if TYPE_CHECKING:
     from mesh.meshed import MeshedHinge
-    from mesh.settings import MeshSettings
-
-__all__ = [
-    "HINGES",
-    "MeshedHinge",
-    "build_and_mesh",
-    "dumps",
-    "make_model",
-    "mesh_summary",
-    "strict_json",
-]
-
-HINGES = ("general", "bearing")
-
-
-def build_and_mesh(
-    model: HingeModel, settings: MeshSettings, out: Path | None, *, picture: bool = True
-) -> MeshedHinge:
-    """Mesh a hinge model and write its files (``mesh.meshed.build_and_mesh``)."""
-    from mesh.meshed import build_and_mesh as build
-
-    return build(model, settings, out, picture=picture)
-
-
-def __getattr__(name: str) -> Any:
-    if name == "MeshedHinge":  # re-exported lazily, so that ``hingelab --help`` stays fast
-        from mesh.meshed import MeshedHinge
-
-        return MeshedHinge
-    raise AttributeError(name)
-
-
-def make_model(
-    hinge: str, *, clearance_mm: float | None = None, preload_n: float | None = None
-) -> HingeModel:
-    """Build a hinge model from the command-line parameters.
-
-    Raises:
-        ParameterError: For an unknown hinge or a parameter the hinge does not take.
-    """
-    if hinge == "general":
-        from cad.general import GeneralHingeParams, make_general_hinge
-
-        if preload_n is not None:
-            raise ParameterError(
-                f"preload applies to the bearing hinge only, got --preload {preload_n} with --hinge general"
-            )
-        return make_general_hinge(
-            GeneralHingeParams(clearance_mm=0.0 if clearance_mm is None else clearance_mm)
-        )
-    if hinge == "bearing":
-        from cad.bearing import BearingHingeParams, make_bearing_hinge
-
-        if clearance_mm is not None:
-            raise ParameterError(
-                f"the bearing hinge has no clearance, got --clearance {clearance_mm} with --hinge bearing"
-            )
-        kwargs: dict[str, Any] = {} if preload_n is None else {"preload_n": preload_n}
-        return make_bearing_hinge(BearingHingeParams(**kwargs))
-    raise ParameterError(f"hinge must be one of {HINGES}, got {hinge!r}")
 
 
 def mesh_summary(m: MeshedHinge, total_wall_s: float) -> dict[str, Any]:

@@ -44,14 +44,16 @@ from pathlib import Path
 from typing import Any
 
 from cad.errors import DataError, ParameterError
+from fe.kinds import DEFAULT_KIND, HingeKind, hinge_kind, kind_names
 
-VARIABLES: dict[str, tuple[str, str]] = {
-    "general": ("clearance_mm", "amplitude_N"),
-    "bearing": ("preload_N", "amplitude_N"),
-}
-"""What a study of each hinge kind may vary: (design value, amplitude), the fields of
-``model.spec.DesignPoint`` under the names the sweep's trace and table give them
-(``studies.sweep_points.point_params``)."""
+
+def study_variables(kind: HingeKind) -> tuple[str, ...]:
+    """What a study of a hinge kind may vary: its design variable and the amplitude.
+
+    By the columns the sweep's trace and table give them (``studies.sweep_points.point_params``).
+    """
+    return (*(v.column for v in kind.design_variables[:1]), "amplitude_N")
+
 
 RESPONSES = (
     "eta",
@@ -113,20 +115,20 @@ class Study:
 
     @property
     def kind(self) -> str:
-        """The hinge kind of the model, ``general`` or ``bearing``."""
+        """The name of the model's hinge kind."""
         return str(self.spec.kind)
 
     @property
-    def variables(self) -> tuple[str, str]:
-        """The names of a point's two values (trace parameters and table columns)."""
-        return VARIABLES[self.kind]
+    def variables(self) -> tuple[str, ...]:
+        """The names of a point's values (trace parameters and table columns)."""
+        return study_variables(self.spec.hinge_kind)
 
     def sweep_settings(self, *, workers: int = 1, scheduler: str | None = None) -> Any:
         """The ``studies.sweep.SweepSettings`` that run this study."""
         from studies.sweep import SweepSettings
 
         return SweepSettings(
-            points_mm_n=self.points,
+            points=self.points,
             model=self.spec,
             mesh=self.spec.mesh,
             workers=workers,
@@ -187,12 +189,12 @@ def _override(
 
 
 def _base_spec(study: dict[str, Any], path: Path) -> Any:
-    from cad.general import GeneralHingeParams
     from model.spec import ModelSpec
 
     model = study.get("model")
     if model is None:
-        return ModelSpec("general", GeneralHingeParams())
+        kind = hinge_kind(DEFAULT_KIND)
+        return ModelSpec(kind.name, kind.params_type())
     if not isinstance(model, str):
         raise _err(path, "study", f"model must be a path (string), got {model!r}")
     from model.file import read_model
@@ -201,36 +203,20 @@ def _base_spec(study: dict[str, Any], path: Path) -> Any:
 
 
 def _model(doc: dict[str, Any], study: dict[str, Any], path: Path) -> Any:
-    from mesh.settings import MeshSettings
     from model.service import check_spec
 
     spec = _base_spec(study, path)
     check_spec(spec)
-    if spec.kind not in VARIABLES:
-        raise _err(
-            path,
-            "study",
-            f"model: a study needs a {' or '.join(VARIABLES)} model, got {spec.kind!r}",
-        )
-    bearing = spec.kind == "bearing"
-    design_field = "preload_n" if bearing else "clearance_mm"
-    hinge = _override(spec.hinge, _table(doc, "hinge", path), path, "hinge", skip=(design_field,))
+    kind = spec.hinge_kind
+    design_fields = tuple(v.name for v in kind.design_variables)
+    hinge = _override(spec.hinge, _table(doc, "hinge", path), path, "hinge", skip=design_fields)
     mesh_t = dict(_table(doc, "mesh", path))
     preset = mesh_t.pop("preset", None)
     mesh = spec.mesh
     if preset is not None:
         if preset not in MESH_PRESETS:
             raise _err(path, "mesh", f"preset must be one of {list(MESH_PRESETS)}, got {preset!r}")
-        if bearing:
-            # both ball models run on the structure meshed without balls (``full`` brings
-            # its own meshed ball, fe.bearing.ball_rig)
-            mesh = MeshSettings.for_hinge("bearing", balls=False)
-            if preset == "coarse":
-                mesh = dataclasses.replace(
-                    mesh, size_mm=4.0, contact_size_mm=0.8, part_sizes_mm=(("ring", 1.2),)
-                )
-        else:
-            mesh = MeshSettings.coarse() if preset == "coarse" else MeshSettings()
+        mesh = kind.mesh_settings(coarse=preset == "coarse")
     mesh = _override(mesh, mesh_t, path, "mesh")
     solver_t = dict(_table(doc, "solver", path))
     if "increments" in solver_t:
@@ -241,7 +227,7 @@ def _model(doc: dict[str, Any], study: dict[str, Any], path: Path) -> Any:
     return dataclasses.replace(spec, hinge=hinge, mesh=mesh, cycle=cycle)
 
 
-def _variable(design: dict[str, Any], name: str, kind: str, path: Path) -> Any:
+def _variable(design: dict[str, Any], name: str, design_type: str, path: Path) -> Any:
     """Levels (full factorial) or (min, max) (the others) of one variable, or None."""
     sec = f"design.{name}"
     table = design.get(name)
@@ -249,7 +235,7 @@ def _variable(design: dict[str, Any], name: str, kind: str, path: Path) -> Any:
         return None
     if not isinstance(table, dict):
         raise _err(path, sec, f"must be a table, got {table!r}")
-    if kind == "full_factorial":
+    if design_type == "full_factorial":
         _keys(table, ("levels",), path, sec)
         levels = table.get("levels")
         if not isinstance(levels, list) or not levels:
@@ -260,7 +246,7 @@ def _variable(design: dict[str, Any], name: str, kind: str, path: Path) -> Any:
         return values
     _keys(table, ("min", "max"), path, sec)
     if "min" not in table or "max" not in table:
-        raise _err(path, sec, f"a {kind} design needs min and max, got {table}")
+        raise _err(path, sec, f"a {design_type} design needs min and max, got {table}")
     lo, hi = (_number(table[k], k, path, sec) for k in ("min", "max"))
     if not lo < hi:
         raise _err(path, sec, f"min must be < max, got min = {lo:g}, max = {hi:g}")
@@ -273,16 +259,17 @@ def _design(doc: dict[str, Any], spec: Any, path: Path) -> tuple[str, list[tuple
     from rsm import design as doe
 
     design = _table(doc, "design", path)
-    kind = design.get("type", "full_factorial")
-    if kind not in DESIGNS:
-        raise _err(path, "design", f"type must be one of {list(DESIGNS)}, got {kind!r}")
+    design_type = design.get("type", "full_factorial")
+    if design_type not in DESIGNS:
+        raise _err(path, "design", f"type must be one of {list(DESIGNS)}, got {design_type!r}")
     extra = {
         "full_factorial": (),
         "latin_hypercube": ("samples", "seed"),
         "central_composite": ("face", "center"),
     }
-    names = VARIABLES[spec.kind]
-    for other_kind, other in VARIABLES.items():
+    names = study_variables(spec.hinge_kind)
+    for other_kind in kind_names():
+        other = study_variables(hinge_kind(other_kind))
         wrong = [v for v in other if v not in names and v in design]
         if wrong:
             raise _err(
@@ -291,14 +278,14 @@ def _design(doc: dict[str, Any], spec: Any, path: Path) -> tuple[str, list[tuple
                 f"{wrong[0]} is a design variable of the {other_kind} hinge; the model is the "
                 f"{spec.kind} hinge, whose study varies {', '.join(names)}",
             )
-    _keys(design, ["type", *names, *extra[kind]], path, "design")
-    found = {v: _variable(design, v, kind, path) for v in names}
+    _keys(design, ["type", *names, *extra[design_type]], path, "design")
+    found = {v: _variable(design, v, design_type, path) for v in names}
     varied = [v for v in names if found[v] is not None]
     if not varied:
         raise _err(path, "design", f"vary at least one of {list(names)} ([design.{names[0]}])")
-    if kind == "full_factorial":
+    if design_type == "full_factorial":
         x = doe.full_factorial([found[v] for v in varied])
-    elif kind == "latin_hypercube":
+    elif design_type == "latin_hypercube":
         n = _number(design.get("samples", 10), "samples", path, "design", integer=True)
         seed = _number(design.get("seed", 0), "seed", path, "design", integer=True)
         if not 2 <= n <= 10_000:
@@ -318,26 +305,26 @@ def _design(doc: dict[str, Any], spec: Any, path: Path) -> tuple[str, list[tuple
         x = doe.central_composite(
             [found[v] for v in varied], face=doe.CompositeFace[face.upper()], n_center=center
         )
-    value = spec.hinge.preload_n if spec.kind == "bearing" else 0.0
-    fixed = dict(zip(names, (value, spec.cycle.amplitude_n), strict=True))
+    fixed = {v.column: getattr(spec.hinge, v.name) for v in spec.hinge_kind.design_variables}
+    fixed["amplitude_N"] = spec.cycle.amplitude_n
     cols = {v: (x[:, varied.index(v)] if v in varied else np.full(len(x), fixed[v])) for v in names}
-    points = [(float(c), float(a)) for c, a in zip(cols[names[0]], cols[names[1]], strict=True)]
-    return kind, points
+    levels = cols[names[0]] if len(names) > 1 else np.zeros(len(x))
+    points = [(float(c), float(a)) for c, a in zip(levels, cols["amplitude_N"], strict=True)]
+    return design_type, points
 
 
-def _check_points(points: list[tuple[float, float]], kind: str, path: Path) -> None:
-    from model.spec import DesignPoint
+def _check_points(points: list[tuple[float, float]], spec: Any, path: Path) -> None:
+    from model.spec import DesignPoint, complete_point
 
-    name, amp = VARIABLES[kind]
+    names = study_variables(spec.hinge_kind)
+    variables = spec.hinge_kind.design_variables[:1]
     for i, (v, a) in enumerate(points):
         try:
-            if kind == "bearing":
-                DesignPoint(amplitude_n=a, preload_n=v)
-            else:
-                DesignPoint(amplitude_n=a, clearance_mm=v)
+            complete_point(spec, DesignPoint(a, {x.name: v for x in variables}))
         except ParameterError as err:
+            where = f"{names[0]} = {v:g}, " if variables else ""
             raise _err(
-                path, "design", f"point {i + 1} ({name} = {v:g}, {amp} = {a:g}): {err}"
+                path, "design", f"point {i + 1} ({where}amplitude_N = {a:g}): {err}"
             ) from err
 
 
@@ -406,9 +393,10 @@ def read_study(path: Path | str) -> Study:
         )
     spec = _model(doc, study, path)
     kind, points = _design(doc, spec, path)
-    _check_points(points, spec.kind, path)
-    names = VARIABLES[spec.kind]
+    _check_points(points, spec, path)
+    names = study_variables(spec.hinge_kind)
     unique = {(c + 0.0, a + 0.0) for c, a in points}
-    varied = {v for v, i in zip(names, (0, 1), strict=True) if len({p[i] for p in unique}) > 1}
+    index = {names[0]: 0, "amplitude_N": 1} if len(names) > 1 else {"amplitude_N": 1}
+    varied = {v for v, i in index.items() if len({p[i] for p in unique}) > 1}
     surface = _surface(doc, len(unique), varied, names, path)
     return Study(path, name, description, spec, kind, tuple(points), surface)

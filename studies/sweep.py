@@ -45,7 +45,9 @@ from typing import Any
 
 from cad.errors import ParameterError
 from fe.hinge.protocol import DEFAULT_MU
+from fe.kinds import DEFAULT_KIND, hinge_kind
 from mesh.settings import MeshSettings
+from studies.options import params_with
 from studies.sweep_points import point_record, sweep_service
 
 logger = logging.getLogger(__name__)
@@ -53,10 +55,11 @@ logger = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class SweepSettings:
-    """A sweep over clearance × amplitude (general hinge) or preload × amplitude (bearing).
+    """A sweep of a hinge kind over its design variable × amplitude.
 
     Attributes:
-        clearances_mm: Radial clearances [mm] (general hinge).
+        levels: Levels of the kind's design variable (the general hinge's clearance [mm],
+            the bearing hinge's preload [N]); None: the variable's ``study_levels``.
         amplitudes_n: Force amplitudes [N].
         mu: Friction coefficient.
         increments_per_stage: Increments per half cycle at zero clearance.
@@ -64,20 +67,18 @@ class SweepSettings:
         mesh: Mesh settings.
         workers: Dask worker processes; 1 runs in this process.
         study: Study name in the trace.
-        points_mm_n: Explicit (design value, amplitude [N]) points, the design value being
-            the clearance [mm] of the general hinge or the preload [N] of the bearing hinge;
-            when given they replace the grid (``clearances_mm`` or ``preloads_n`` ×
-            ``amplitudes_n``).
-        model: The model (``model.spec.ModelSpec``) to run instead of the default
-            general hinge with ``mu``, the increments and ``mesh`` above.
+        points: Explicit (level, amplitude [N]) points; when given they replace the grid
+            (``levels`` × ``amplitudes_n``).
+        model: The model (``model.spec.ModelSpec``) to run instead of the default hinge of
+            kind ``hinge`` with ``mu``, the increments, ``mesh`` and ``hinge_options``.
         scheduler: Address of an existing Dask scheduler (``tcp://host:8786``); None runs
             in this process or on a private LocalCluster (``workers``).
-        hinge: ``general`` or ``bearing`` (the default hinge of that kind, when no ``model``).
-        preloads_n: Axial preloads [N] of the bearing hinge's grid.
-        interfaces: The bearing hinge's interfaces, ``bonded`` or ``contact``.
+        hinge: A registered hinge kind (``fe.kinds``), when no ``model``.
+        hinge_options: Parameter overrides of that default hinge, as (field, value) pairs
+            (e.g. the bearing hinge's ``interfaces``).
     """
 
-    clearances_mm: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4)
+    levels: tuple[float, ...] | None = None
     amplitudes_n: tuple[float, ...] = (100.0, 200.0, 300.0, 400.0, 500.0)
     mu: float = DEFAULT_MU
     increments_per_stage: int = 20
@@ -85,36 +86,30 @@ class SweepSettings:
     mesh: MeshSettings = field(default_factory=MeshSettings)
     workers: int = 1
     study: str = "general_hinge"
-    points_mm_n: tuple[tuple[float, float], ...] = ()
+    points: tuple[tuple[float, float], ...] = ()
     model: Any = None
     scheduler: str | None = None
-    hinge: str = "general"
-    preloads_n: tuple[float, ...] = (0.0, 50.0, 100.0, 150.0, 200.0)
-    interfaces: str = "bonded"
+    hinge: str = DEFAULT_KIND
+    hinge_options: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
-        if self.hinge not in ("general", "bearing"):
-            raise ParameterError(f"hinge must be 'general' or 'bearing', got {self.hinge!r}")
-        if self.is_bearing and not self.points_mm_n and not self.preloads_n:
-            raise ParameterError("a bearing sweep needs at least one preload, got none")
-        if not self.points_mm_n and (not self.clearances_mm or not self.amplitudes_n):
+        if not self.points and (not self.grid_levels() or not self.amplitudes_n):
             raise ParameterError(
-                f"a sweep needs at least one clearance and one amplitude, got {self.clearances_mm} "
+                f"a sweep needs at least one level and one amplitude, got {self.levels} "
                 f"and {self.amplitudes_n}"
             )
         if not 1 <= self.workers <= 64:
             raise ParameterError(f"--workers must be in [1, 64], got {self.workers}")
         self.spec()  # every parameter is checked now, before anything is meshed
-        self.points()
+        self.design_points()
 
     def spec(self) -> Any:
-        """The ``model.spec.ModelSpec`` of the sweep (the clearance is set per point)."""
-        if self.model is not None:
-            from model.service import check_spec
+        """The ``model.spec.ModelSpec`` of the sweep (the design variable is set per point)."""
+        from model.service import check_spec
 
+        if self.model is not None:
             check_spec(self.model)
             return self.model
-        from cad.general import GeneralHingeParams
         from fe.hinge.protocol import CycleSettings
         from model.spec import ModelSpec
 
@@ -123,52 +118,36 @@ class SweepSettings:
             increments_per_stage=self.increments_per_stage,
             clearance_increments=self.clearance_increments,
         )
-        if self.hinge == "bearing":
-            from cad.bearing import BearingHingeParams, Interfaces
+        kind = hinge_kind(self.hinge)
+        spec = ModelSpec(kind.name, params_with(kind, dict(self.hinge_options)), self.mesh, cycle)
+        check_spec(spec)
+        return spec
 
-            try:
-                interfaces = Interfaces(self.interfaces)
-            except ValueError as err:
-                allowed = [i.value for i in Interfaces]
-                raise ParameterError(
-                    f"interfaces must be one of {allowed}, got {self.interfaces!r}"
-                ) from err
-            return ModelSpec("bearing", BearingHingeParams(interfaces=interfaces), self.mesh, cycle)
-        return ModelSpec("general", GeneralHingeParams(), self.mesh, cycle)
+    def grid_levels(self) -> tuple[float, ...]:
+        """The levels of the grid: ``levels``, or the design variable's study levels."""
+        if self.levels is not None:
+            return self.levels
+        variables = self._kind().design_variables
+        return variables[0].study_levels if variables else (0.0,)
 
-    @property
-    def is_bearing(self) -> bool:
-        """True for a preload × amplitude sweep of the bearing hinge."""
-        if self.model is not None:
-            return bool(self.model.kind == "bearing")
-        return self.hinge == "bearing"
+    def _kind(self) -> Any:
+        return self.spec().hinge_kind if self.model is not None else hinge_kind(self.hinge)
 
-    def points(self) -> list[Any]:
-        """The distinct design points (the grid clearance- or preload-major, or ``points_mm_n``).
+    def design_points(self) -> list[Any]:
+        """The distinct design points (the grid level-major, or ``points``).
 
         Raises:
-            ParameterError: For a value out of ``DesignPoint``'s ranges (a preload outside
-                [0, 500] N, a negative clearance, ...), named with its range.
+            ParameterError: For a value out of its design variable's range, named with it.
         """
-        from model.service import design_points
-        from model.spec import DesignPoint
+        from model.spec import DesignPoint, complete_point
 
-        if self.is_bearing:
-            pairs = self.points_mm_n or tuple(
-                (fp, a) for fp in self.preloads_n for a in self.amplitudes_n
-            )
-            grid: dict[tuple[float | None, float], Any] = {}
-            for fp, a in pairs:
-                p = DesignPoint(amplitude_n=a, preload_n=fp)
-                grid.setdefault((p.preload_n, p.amplitude_n), p)
-            return list(grid.values())
-        if not self.points_mm_n:
-            return design_points(self.clearances_mm, self.amplitudes_n)
-        seen: dict[tuple[float, float], Any] = {}
-        for c, a in self.points_mm_n:
-            p = DesignPoint(amplitude_n=a, clearance_mm=c)
-            seen.setdefault((p.clearance_mm, p.amplitude_n), p)
-        return list(seen.values())
+        spec = self.spec()
+        variables = spec.hinge_kind.design_variables
+        pairs = self.points or tuple((x, a) for x in self.grid_levels() for a in self.amplitudes_n)
+        points = [DesignPoint(a, {variables[0].name: x} if variables else {}) for x, a in pairs]
+        for p in points:
+            complete_point(spec, p)  # checks each value against its range
+        return list(dict.fromkeys(points))
 
 
 def trace_status(db: Path, study: str) -> tuple[dict[str, int], set[str]]:
@@ -252,7 +231,7 @@ def plan_sweep(settings: SweepSettings, out: Path) -> list[PlannedPoint]:
     ok, failed = trace_status(out / "trace.sqlite", settings.study)
     store = ResultStore(out / "results")
     plan = []
-    for p in settings.points():
+    for p in settings.design_points():
         key = result_key(spec, p)
         if key in ok:
             plan.append(PlannedPoint(p, key, PointState.DONE, ok[key]))
@@ -348,7 +327,9 @@ def run_sweep(
         if on_point is not None:
             on_point(rec)
 
-    n_geo = len({p.clearance_mm for p in todo})
+    from model.spec import geometry_key
+
+    n_geo = len({geometry_key(spec, p) for p in todo})
     if settings.scheduler is not None and todo:
         from studies.sweep_dask import run_on_scheduler
 

@@ -1,6 +1,6 @@
 """Sweep points on Dask: a private ``LocalCluster``, or an existing cluster by its address.
 
-Both pin every point of one clearance to one worker (one preparation per clearance) and
+Both pin every point of one geometry to one worker (one preparation per geometry) and
 hand each point's record to the driver the moment it completes, so the driver records it
 in the trace at once (an interrupted sweep keeps every finished point).
 
@@ -82,17 +82,24 @@ def run_point_remote(spec: Any, point: Any) -> dict[str, Any]:
 
 
 def _submit_pinned(
-    client: Any, points: list[Any], task: Callable[..., Any], args: Callable[[Any], tuple[Any, ...]]
+    client: Any,
+    spec: Any,
+    points: list[Any],
+    task: Callable[..., Any],
+    args: Callable[[Any], tuple[Any, ...]],
 ) -> list[Any]:
-    """Submit ``task(*args(point))`` for every point, all points of a clearance on one worker."""
-    clearances = list(dict.fromkeys(p.clearance_mm for p in points))
+    """Submit ``task(*args(point))`` for every point, all points of a geometry on one worker."""
+    from model.spec import geometry_key
+
+    geometry = {p: geometry_key(spec, p) for p in points}
+    keys = list(dict.fromkeys(geometry.values()))
     workers = sorted(client.scheduler_info()["workers"])
     if not workers:
         raise DataError("the Dask cluster has no workers")
-    home = {c: workers[i % len(workers)] for i, c in enumerate(clearances)}
+    home = {g: workers[i % len(workers)] for i, g in enumerate(keys)}
     return [
         client.submit(
-            task, *args(p), pure=False, workers=[home[p.clearance_mm]], allow_other_workers=False
+            task, *args(p), pure=False, workers=[home[geometry[p]]], allow_other_workers=False
         )
         for p in points
     ]
@@ -115,7 +122,10 @@ def run_on_local_cluster(points: list[Any], settings: Any, out: Path, store: Sto
     from dask.distributed import Client, LocalCluster
 
     _quiet_dask()
-    n = min(settings.workers, len({p.clearance_mm for p in points}))
+    from model.spec import geometry_key
+
+    spec = settings.spec()
+    n = min(settings.workers, len({geometry_key(spec, p) for p in points}))
     with (
         LocalCluster(
             n_workers=n,
@@ -128,7 +138,7 @@ def run_on_local_cluster(points: list[Any], settings: Any, out: Path, store: Sto
         ) as cluster,
         Client(cluster) as client,
     ):
-        futures = _submit_pinned(client, points, run_point_task, lambda p: (settings, p, out))
+        futures = _submit_pinned(client, spec, points, run_point_task, lambda p: (settings, p, out))
         _drain(client, futures, store)
 
 
@@ -163,5 +173,5 @@ def run_on_scheduler(points: list[Any], settings: Any, out: Path, store: Store) 
         store(rec)
 
     with client:
-        futures = _submit_pinned(client, points, run_point_remote, lambda p: (spec, p))
+        futures = _submit_pinned(client, spec, points, run_point_remote, lambda p: (spec, p))
         _drain(client, futures, handle)

@@ -15,20 +15,24 @@ if TYPE_CHECKING:
     from studies.sweep import SweepSettings
 
 
-def point_params(p: Any) -> dict[str, float]:
-    """The trace parameters of a design point (preload or clearance, and amplitude)."""
-    if p.preload_n is not None:
-        return {"preload_N": p.preload_n, "amplitude_N": p.amplitude_n}
-    return {"clearance_mm": p.clearance_mm, "amplitude_N": p.amplitude_n}
+def point_params(spec: Any, p: Any) -> dict[str, float]:
+    """The trace parameters of a design point: its design variables by column, and amplitude."""
+    from model.spec import complete_point
+
+    values = complete_point(spec, p).values
+    columns = {v.name: v.column for v in spec.hinge_kind.design_variables}
+    return {**{columns[k]: v for k, v in values.items()}, "amplitude_N": p.amplitude_n}
 
 
-def geometry_folder(out: Path) -> Callable[[float], Path]:
-    """Where a sweep writes the files of the geometry with a given clearance."""
-    return lambda clearance: out / "geometry" / f"c{clearance:.3f}"
+def geometry_folder(out: Path) -> Callable[[str], Path]:
+    """Where a sweep writes the files of a geometry, by its label (``c0.100``)."""
+    return lambda label: out / "geometry" / label
 
 
 def mesh_stats_of(prepared: Any) -> dict[str, Any]:
     """The mesh figures a point's trace record keeps, from a prepared geometry."""
+    if prepared.meshed is None:
+        return {}
     r = prepared.meshed.report
     return {
         "n_hex": r.n_hex,
@@ -64,10 +68,12 @@ def point_record(
         lu_threads = int(newton.LU_THREADS)
     spec = settings.spec()
 
+    from model.spec import describe_point, point_label, structure_label
+
     p = run.point
-    folder = out / "points" / p.label()
+    folder = out / "points" / point_label(spec, p)
     folder.mkdir(parents=True, exist_ok=True)
-    geo = out / "geometry" / f"c{p.clearance_mm:.3f}"
+    geo = out / "geometry" / structure_label(spec, p)
     artifacts: dict[str, Any] = {
         "step": geo / "hinge.step",
         "mesh_msh": geo / "mesh.msh",
@@ -78,7 +84,7 @@ def point_record(
     mesh_stats = mesh_stats_of(run.prepared) if run.prepared is not None else (mesh_stats or {})
     rec: dict[str, Any] = {
         "study": settings.study,
-        "params": point_params(p),
+        "params": point_params(spec, p),
         "solver": {
             "result_key": run.key,
             "mu": spec.cycle.mu,
@@ -94,12 +100,7 @@ def point_record(
     }
     if run.ok:
         result = run.result
-        what = (
-            f"bearing hinge ({spec.hinge.interfaces.value}), Fp = {p.preload_n:g} N"
-            if p.preload_n is not None
-            else f"general hinge, Δr = {p.clearance_mm:g} mm"
-        )
-        title = f"{what}, Fg = {p.amplitude_n:g} N, μ = {spec.cycle.mu:g}"
+        title = describe_point(spec, p)
         artifacts["loop_csv"] = write_loop_csv(result, folder / "loop.csv")
         artifacts["loop_png"] = write_loop_png(result, folder / "loop.png", title=title)
         # NaN (η of a loop without energy) becomes null: strict JSON, and no NaN in the table

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -44,3 +45,47 @@ def test_modules_stay_under_the_size_limit() -> None:
     assert not too_long, (
         f"modules over {MAX_LINES} lines (or grown past their old length): {too_long}"
     )
+
+
+KIND_BRANCH = re.compile(
+    r"""\bkind\s*[!=]=\s*["']"""  # spec.kind == "bearing"
+    r"""|[!=]=\s*["'](general|bearing)["']"""  # hinge != "general"
+    r"""|["'](general|bearing)["']\s*[!=]="""
+    r"""|\(\s*["']general["']\s*,\s*["']bearing["']\s*\)"""  # kind in ("general", "bearing")
+    r"""|isinstance\([^)]*(System|HingeParams)\b"""  # isinstance(system, BearingSystem)
+)
+"""A branch on the hinge kind: a kind name compared, or a kind's system or parameters tested."""
+
+KIND_PACKAGES = ("fe/hinge/", "fe/bearing/", "fe/kinds/")
+"""Where a kind may look at itself: its own mechanics and its registered object."""
+
+
+def test_no_branch_on_the_hinge_kind_outside_the_kinds() -> None:
+    """The rest of the code asks the registry (fe.kinds) and the kind, never compares kinds."""
+    found = []
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            rel = path.relative_to(ROOT).as_posix()
+            if rel.startswith(KIND_PACKAGES):
+                continue
+            for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+                if KIND_BRANCH.search(line):
+                    found.append(f"{rel}:{n}: {line.strip()}")
+    assert not found, "branches on the hinge kind:\n" + "\n".join(found)
+
+
+def test_the_kind_branch_pattern_catches_what_it_is_for() -> None:
+    caught = [
+        'if spec.kind == "bearing":',
+        'bearing = args.hinge == "bearing"',
+        'if kind not in ("general", "bearing"):',
+        "if isinstance(system, BearingSystem | FitSystem):",
+        "elif isinstance(spec.hinge, GeneralHingeParams):",
+    ]
+    allowed = [
+        'kind = hinge_kind("bearing")',
+        'if design_type == "full_factorial":',
+        'for name in ("general", "modified"):  # the paper\'s two cases',
+    ]
+    assert all(KIND_BRANCH.search(line) for line in caught)
+    assert not any(KIND_BRANCH.search(line) for line in allowed)

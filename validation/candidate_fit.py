@@ -16,6 +16,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy import optimize, stats
 
+from fe.kinds import DEFAULT_KIND, DesignVariable, hinge_kind
 from validation.evaluate import ModelEvaluator
 from validation.features import FeatureSettings, derived, feature_sigma, loop_features
 from validation.loops import process_loop
@@ -71,14 +72,15 @@ class MeasuredFeatures:
     ``(η_model − η)/σ_η`` with ``η_model = W/(π Fg δ_max)`` from the model's features.
 
     Attributes:
-        points: (clearance [mm] — the preload [N] for bearing-hinge data —, amplitude [N])
-            per row.
+        points: (design value, amplitude [N]) per row; the design value is the kind's
+            first design variable (the general hinge's clearance [mm], the bearing hinge's
+            preload [N]; 0 for a kind without one).
         values: Features, shape (n_points, 3) (η-only rows: [NaN, η, NaN]).
         sigma: Their σ, shape (n_points, 3).
         eta_only: Rows measured by η only, shape (n_points,).
-        clearance_mm: Radial clearance of each row [mm] (0 for the bearing hinge, whose
-            ``points`` hold the preload); None: the first entry of ``points``.
-        design_variable: What the first entry of ``points`` is: ``clearance`` or ``preload``.
+        clearance_mm: Radial clearance of each row [mm], whose free play 2Δr a stated η
+            excludes (0 for a kind without one); None: the first entry of ``points``.
+        hinge: The hinge kind of the rows (its first design variable is in ``points``).
         max_rel_sigma: Features with σ > max_rel_sigma·|value| are uninformative
             (``FeatureSettings.max_rel_sigma``); inf keeps every finite feature.
     """
@@ -89,7 +91,18 @@ class MeasuredFeatures:
     eta_only: npt.NDArray[np.bool_] | None = None
     max_rel_sigma: float = math.inf
     clearance_mm: tuple[float, ...] | None = None
-    design_variable: str = "clearance"
+    hinge: str = DEFAULT_KIND
+
+    @property
+    def variable(self) -> DesignVariable | None:
+        """The design variable in ``points`` (None for a kind without one)."""
+        variables = hinge_kind(self.hinge).design_variables
+        return variables[0] if variables else None
+
+    @property
+    def design_variable(self) -> str:
+        """The design variable in words (``clearance``), for messages."""
+        return "design" if self.variable is None else self.variable.word
 
     @property
     def informative(self) -> npt.NDArray[np.bool_]:
@@ -131,7 +144,10 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
     """
     points, values, sigmas, eta_only, clearances = [], [], [], [], []
     by_id = data.by_id()
-    for (hinge, clearance, preload, amp), ids in data.replicate_groups().items():
+    hinges = set()
+    for (hinge, pairs, amp), ids in data.replicate_groups().items():
+        hinges.add(hinge)
+        design = dict(pairs)
         loops = []
         etas = []
         for cid in ids:
@@ -142,9 +158,10 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
                 )
             elif case.eta is not None:
                 etas.append(float(case.eta))
-        # the design variable next to the amplitude: the bearing hinge's is its preload
-        points.append((preload if hinge == "bearing" else clearance, amp))
-        clearances.append(clearance)
+        variables = hinge_kind(hinge).design_variables
+        points.append((design[variables[0].name] if variables else 0.0, amp))
+        # the free play a stated η excludes is that of a radial clearance, of any kind
+        clearances.append(design.get("clearance_mm", 0.0))
         if loops:
             feats = np.array([loop_features(p) for p in loops])
             rep = np.std(feats, axis=0, ddof=1) if len(loops) > 1 else None
@@ -171,13 +188,13 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
         np.array(eta_only, dtype=bool),
         settings.max_rel_sigma,
         tuple(clearances),
-        "preload" if any(k[0] == "bearing" for k in data.replicate_groups()) else "clearance",
+        hinges.pop() if len(hinges) == 1 else DEFAULT_KIND,
     )
 
 
 def design_text(meas: MeasuredFeatures, x: float) -> str:
     """``Δr = 0.1 mm`` or ``F_p = 100 N``: the design variable of a row, for messages."""
-    return f"F_p = {x:g} N" if meas.design_variable == "preload" else f"Δr = {x:g} mm"
+    return "" if meas.variable is None else meas.variable.text(x)
 
 
 def _eta_without_free_play(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:

@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 
 from cad.errors import DataError, check_range
+from fe.kinds import hinge_kind
 from validation.features import FeatureSettings, feature_sigma, loop_features
 from validation.loops import ProcessedLoop, loop_distance, noise_level, process_loop
 from validation.measurements import Case, Loop, MeasurementSet
@@ -212,8 +213,7 @@ class Comparison:
                 {
                     "case_id": c.case.case_id,
                     "hinge": c.case.hinge,
-                    "clearance_mm": c.case.clearance_mm,
-                    "preload_N": c.case.preload_n,
+                    **case_columns(c.case),
                     "amplitude_N": c.case.amplitude_n,
                     "replicate": c.case.replicate,
                     "source": None if c.case.loop is None else c.case.loop.source,
@@ -393,23 +393,34 @@ def _values(members: list[CaseComparison], side: str, key: str) -> list[float]:
     return [getattr(c, side).get(key, math.nan) for c in members]
 
 
+def case_columns(case: Case) -> dict[str, float]:
+    """The case's design values by their cases.csv columns (``clearance_mm``, ``preload_N``)."""
+    columns = {v.name: v.column for v in hinge_kind(case.hinge).design_variables}
+    return {columns[k]: v for k, v in case.values.items()}
+
+
+def group_name(case: Case) -> str:
+    """The case's design point without its amplitude, e.g. ``general, Δr = 0.1 mm``."""
+    return ", ".join(filter(None, [case.hinge, case.describe()]))
+
+
 def fingerprint(cases: tuple[CaseComparison, ...]) -> tuple[FingerprintFit, ...]:
-    """Fit log–log slopes of W and η against amplitude per (hinge, clearance, preload) group.
+    """Fit log–log slopes of W and η against amplitude per design group (``group_name``).
 
     Groups with fewer than two distinct amplitudes are skipped.
     """
-    groups: dict[tuple[str, float, float], list[CaseComparison]] = {}
+    groups: dict[str, list[CaseComparison]] = {}
     for c in cases:
-        groups.setdefault((c.case.hinge, c.case.clearance_mm, c.case.preload_n), []).append(c)
+        groups.setdefault(group_name(c.case), []).append(c)
     fits = []
-    for (hinge, clearance, preload), members in groups.items():
+    for group, members in groups.items():
         amps = [c.case.amplitude_n for c in members]
         if len(set(amps)) < 2:
             continue
 
         fits.append(
             FingerprintFit(
-                group=f"{hinge}, Δr = {clearance:g} mm, preload = {preload:g} N",
+                group=group,
                 amplitudes_n=tuple(sorted(set(amps))),
                 slope_W_measured=_slope(amps, _values(members, "measured", "W_cycle_Nmm")),
                 slope_W_model=_slope(amps, _values(members, "model", "W_cycle_Nmm")),

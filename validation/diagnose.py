@@ -55,7 +55,7 @@ import numpy as np
 from scipy import stats
 
 from cad.errors import ParameterError
-from model.spec import INTERFACE_FRICTION, ModelSpec
+from model.spec import ModelSpec
 from validation.candidate_fit import (
     CandidateFit,
     DiagnoseSettings,
@@ -437,13 +437,19 @@ def _verdict(
     )
 
 
-def _frictional_fits(spec: ModelSpec) -> bool:
-    """True for a bearing hinge whose fits are Coulomb contacts already."""
-    from cad.bearing import BearingHingeParams, Interfaces
+def refusal(spec: ModelSpec, name: str) -> str | None:
+    """Why the model cannot take effect ``name`` (its kind's checks), or None if it can."""
+    import dataclasses
 
-    return (
-        isinstance(spec.hinge, BearingHingeParams) and spec.hinge.interfaces is Interfaces.CONTACT
-    )
+    from fe.effects.registry import REGISTRY
+    from model.service import check_spec
+
+    values = {p.name: p.default for p in REGISTRY[name].params}
+    try:
+        check_spec(dataclasses.replace(spec, effects={**spec.effects, name: values}))
+    except ParameterError as err:
+        return str(err)
+    return None
 
 
 def diagnose(
@@ -484,21 +490,11 @@ def diagnose(
     for name in REGISTRY:
         if name in spec.effects:
             skipped[name] = "already in the model"
-        elif (
-            spec.kind == "general"
-            and REGISTRY[name].zero_clearance_reason
-            and any(p[0] > 0 for p in meas.points)
-        ):
+        elif REGISTRY[name].zero_clearance_reason and any(c > 0 for c in meas.clearance_mm or ()):
             why = REGISTRY[name].zero_clearance_reason
             skipped[name] = f"needs Δr = 0 at every case ({why})"
-        elif not REGISTRY[name].applies_to(spec.kind) and spec.kind == "bearing":
-            skipped[name] = "acts on the general hinge's pin contacts, not on the bearing hinge"
-        elif not REGISTRY[name].applies_to(spec.kind):
-            skipped[name] = (
-                f"acts on the bearing hinge's bonded interfaces; the {spec.kind} hinge has none"
-            )
-        elif name == INTERFACE_FRICTION and _frictional_fits(spec):
-            skipped[name] = "the fits are contacts already (interfaces = 'contact'): calibrate mu"
+        elif (refused := refusal(spec, name)) is not None:
+            skipped[name] = refused
         elif s.candidates is not None and name not in s.candidates:
             skipped[name] = "not among the candidates asked for"
         else:

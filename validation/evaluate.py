@@ -105,11 +105,8 @@ class ModelEvaluator:
             t0 = time.perf_counter()
             setup0 = self.service.setup_s
             try:
-                design = (
-                    DesignPoint(amp, preload_n=x)
-                    if self.spec.kind == "bearing"
-                    else DesignPoint(amp, x)
-                )
+                variables = self.spec.hinge_kind.design_variables[:1]
+                design = DesignPoint(amp, {v.name: x for v in variables})
                 res = self.service.run_point(spec, design)
                 # the free play crossed at zero force, as the grips see it (no chord area)
                 self._loops[key] = machine_path(res)

@@ -22,10 +22,14 @@ amplitude is wrong).
 
 from __future__ import annotations
 
+import types
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from cad.errors import DataError
+from cad.errors import DataError, ParameterError
+from fe.kinds import DEFAULT_KIND, hinge_kind, kind_names
 from validation.loop_files import (
     BLUEHILL_COLUMNS,
     FORCE_UNITS,
@@ -50,7 +54,6 @@ __all__ = [
     "BLUEHILL_COLUMNS",
     "CASE_COLUMNS",
     "FORCE_UNITS",
-    "HINGE_KINDS",
     "LENGTH_UNITS",
     "OPTIONAL_CASE_COLUMNS",
     "OVERSHOOT_TOL",
@@ -62,6 +65,7 @@ __all__ = [
     "Loop",
     "MeasurementSet",
     "check_amplitude",
+    "design_columns",
     "read_bluehill",
     "read_eta_table",
     "read_loop_csv",
@@ -76,7 +80,18 @@ set point to well under 1 %; 2 % leaves room for noise and slow sampling at the 
 OVERSHOOT_TOL = 0.10
 """A loop whose peaks exceed ±Fg by more than this fraction is refused."""
 
-HINGE_KINDS = ("general", "bearing")
+
+def design_columns() -> dict[str, tuple[str, str]]:
+    """Column (``clearance_mm``, ``preload_N``) → (kind, design variable name), over every kind.
+
+    A cases.csv or η table names a point's design values by these columns; which of them
+    a case uses depends on its hinge kind (``fe.kinds``).
+    """
+    out: dict[str, tuple[str, str]] = {}
+    for name in kind_names():
+        for v in hinge_kind(name).design_variables:
+            out.setdefault(v.column, (name, v.name))
+    return out
 
 
 @dataclass(frozen=True)
@@ -85,9 +100,9 @@ class Case:
 
     Attributes:
         case_id: Unique name of the test.
-        hinge: Hinge kind (``general`` or ``bearing``).
-        clearance_mm: Radial clearance Δr [mm].
-        preload_n: Bearing preload [N] (0 for the general hinge).
+        hinge: Hinge kind (a registered kind name: ``general``, ``bearing``, ...).
+        values: The kind's design variables (``fe.kinds.DesignVariable.name`` → value,
+            e.g. ``{"clearance_mm": 0.1}``).
         amplitude_n: Stated force amplitude Fg [N].
         loop: The recorded loop, or None for an η-only row.
         replicate: Replicate number, or None.
@@ -98,8 +113,7 @@ class Case:
 
     case_id: str
     hinge: str
-    clearance_mm: float
-    preload_n: float
+    values: Mapping[str, float]
     amplitude_n: float
     loop: Loop | None = None
     replicate: int | None = None
@@ -107,10 +121,33 @@ class Case:
     temperature_c: float | None = None
     eta: float | None = None
 
+    def __post_init__(self) -> None:
+        object.__setattr__(
+            self, "values", types.MappingProxyType(dict(sorted(self.values.items())))
+        )
+
+    def __reduce__(self) -> tuple[Any, ...]:  # mappingproxy does not pickle
+        return (
+            _case,
+            (
+                self.case_id, self.hinge, dict(self.values), self.amplitude_n, self.loop,
+                self.replicate, self.rate_mm_per_min, self.temperature_c, self.eta,
+            ),
+        )  # fmt: skip
+
     @property
-    def design_point(self) -> tuple[str, float, float, float]:
-        """(hinge, clearance [mm], preload [N], amplitude [N]): replicates share it."""
-        return (self.hinge, self.clearance_mm, self.preload_n, self.amplitude_n)
+    def design_point(self) -> tuple[Any, ...]:
+        """(hinge, (name, value) pairs, amplitude [N]): replicates share it."""
+        return (self.hinge, tuple(self.values.items()), self.amplitude_n)
+
+    def describe(self) -> str:
+        """The design values in words, e.g. ``Δr = 0.1 mm`` (the kind's symbols and units)."""
+        variables = {v.name: v for v in hinge_kind(self.hinge).design_variables}
+        return ", ".join(variables[k].text(v) for k, v in self.values.items())
+
+
+def _case(*args: Any) -> Case:
+    return Case(*args)
 
 
 @dataclass(frozen=True)
@@ -129,9 +166,9 @@ class MeasurementSet:
         """Return case_id → case."""
         return {c.case_id: c for c in self.cases}
 
-    def replicate_groups(self) -> dict[tuple[str, float, float, float], tuple[str, ...]]:
-        """Return design point → case ids of the cases measured there."""
-        groups: dict[tuple[str, float, float, float], list[str]] = {}
+    def replicate_groups(self) -> dict[tuple[Any, ...], tuple[str, ...]]:
+        """Return design point (``Case.design_point``) → case ids of the cases measured there."""
+        groups: dict[tuple[Any, ...], list[str]] = {}
         for c in self.cases:
             groups.setdefault(c.design_point, []).append(c.case_id)
         return {k: tuple(v) for k, v in groups.items()}
@@ -170,7 +207,9 @@ def check_amplitude(loop: Loop, amplitude_n: float, where: str) -> None:
 
 # --------------------------------------------------------------------------- sets
 
-CASE_COLUMNS = ("case_id", "hinge", "clearance_mm", "preload_N", "amplitude_N", "loop_file")
+CASE_COLUMNS = ("case_id", "hinge", "amplitude_N", "loop_file")
+"""Columns every cases.csv has; besides them, the design columns of its cases' kinds
+(``clearance_mm`` for the general hinge, ``preload_N`` for the bearing hinge)."""
 OPTIONAL_CASE_COLUMNS = ("replicate", "rate_mm_per_min", "temperature_C")
 
 
@@ -199,7 +238,7 @@ def read_measurement_set(folder: Path | str) -> MeasurementSet:
             return read_eta_table(root / "eta.csv")
         raise DataError(f"{root}: no cases.csv (or eta.csv) in the measurement folder")
     table = _read_table(root / "cases.csv")
-    allowed = CASE_COLUMNS + OPTIONAL_CASE_COLUMNS
+    allowed = CASE_COLUMNS + tuple(design_columns()) + OPTIONAL_CASE_COLUMNS
     missing = [c for c in CASE_COLUMNS if c not in table.header]
     if missing:
         raise DataError(
@@ -226,18 +265,48 @@ def read_measurement_set(folder: Path | str) -> MeasurementSet:
     return MeasurementSet(tuple(cases), root)
 
 
-def _case_from_row(table: _Table, i: int, cell: dict[str, str], root: Path) -> Case:
-    hinge = cell["hinge"]
-    if hinge not in HINGE_KINDS:
-        raise DataError(
-            f"{table.where(i, 'hinge')}: hinge must be one of {HINGE_KINDS}, got {hinge!r}"
-        )
-    values = {c: _number(table, i, c) for c in ("clearance_mm", "preload_N", "amplitude_N")}
-    for c, v in values.items():
-        if v < 0 or (c == "amplitude_N" and v == 0):
+def _design_values(table: _Table, i: int, hinge: str) -> dict[str, float]:
+    """The kind's design values of row ``i``; another kind's column must be empty or 0."""
+    kind = hinge_kind(hinge)
+    own = {v.column: v.name for v in kind.design_variables}
+    values = {}
+    for column, (other, _name) in design_columns().items():
+        if column not in table.header and column in own:
             raise DataError(
-                f"{table.where(i, c)}: must be {'> 0' if c == 'amplitude_N' else '≥ 0'}, got {v:g}"
+                f"{table.path}: missing column {column!r}, a design variable of the "
+                f"{kind.title} (row {i + 1})"
             )
+        if column not in table.header:
+            continue
+        present = table.rows[i][table.header.index(column)].strip() != ""
+        value = _number(table, i, column) if present or column in own else 0.0
+        if value < 0:
+            raise DataError(f"{table.where(i, column)}: must be ≥ 0, got {value:g}")
+        if column in own:
+            values[own[column]] = value
+        elif value != 0.0:
+            raise DataError(
+                f"{table.where(i, column)}: {column} = {value:g}, but the {kind.title} has "
+                f"no {column} (it belongs to the {other} hinge)"
+            )
+    return values
+
+
+def _hinge_of(table: _Table, i: int, hinge: str) -> str:
+    try:
+        return hinge_kind(hinge).name
+    except ParameterError as err:
+        raise DataError(f"{table.where(i, 'hinge')}: {err}") from err
+
+
+def _case_from_row(table: _Table, i: int, cell: dict[str, str], root: Path) -> Case:
+    hinge = _hinge_of(table, i, cell["hinge"])
+    design = _design_values(table, i, hinge)
+    values = {"amplitude_N": _number(table, i, "amplitude_N")}
+    if values["amplitude_N"] <= 0:
+        raise DataError(
+            f"{table.where(i, 'amplitude_N')}: must be > 0, got {values['amplitude_N']:g}"
+        )
     loop_file = cell["loop_file"]
     if not loop_file:
         raise DataError(f"{table.where(i, 'loop_file')}: empty loop_file")
@@ -259,8 +328,7 @@ def _case_from_row(table: _Table, i: int, cell: dict[str, str], root: Path) -> C
     return Case(
         case_id=cell["case_id"],
         hinge=hinge,
-        clearance_mm=values["clearance_mm"],
-        preload_n=values["preload_N"],
+        values=design,
         amplitude_n=values["amplitude_N"],
         loop=loop,
         replicate=replicate,
@@ -272,52 +340,64 @@ def _case_from_row(table: _Table, i: int, cell: dict[str, str], root: Path) -> C
 def read_eta_table(path: Path | str, *, hinge: str | None = None) -> MeasurementSet:
     """Read an η-only table (``clearance_mm, preload_N, amplitude_N, eta``), like the paper's Table 1.
 
-    ``clearance_mm`` or ``preload_N`` may be absent (the paper's general-hinge table has
-    no preload, its bearing-hinge table no clearance); an absent one is 0 for every row.
-    Other columns (``num``, a reference value) are kept out of the cases but allowed.
-    Case ids are ``row<N>`` with N the 1-based data row.
+    The design columns are those of the rows' kind; a kind's column may be absent (the
+    paper's general-hinge table has no preload column, its bearing-hinge table no
+    clearance column): then it is the model's own value (0 by default). Other columns
+    (``num``, a reference value) are kept out of the cases but allowed. Case ids are
+    ``row<N>`` with N the 1-based data row.
 
     Args:
         path: The table.
-        hinge: Hinge kind of every row; None: ``bearing`` for a table with a ``preload_N``
-            column and no ``clearance_mm`` (the paper's Table 4), else ``general``.
+        hinge: Hinge kind of every row; None: the kind whose design columns the table has
+            (the general hinge when none or several fit).
 
     Raises:
-        DataError: Missing ``amplitude_N``/``eta`` or both design columns, a non-numeric
+        DataError: Missing ``amplitude_N``/``eta`` or every design column, a non-numeric
             or non-finite value, η outside (0, 1], a negative design value.
     """
     table = _read_table(Path(path))
+    columns = design_columns()
+    present = [c for c in columns if c in table.header]
     if hinge is None:
-        only_preload = "preload_N" in table.header and "clearance_mm" not in table.header
-        hinge = "bearing" if only_preload else "general"
-    if hinge not in HINGE_KINDS:
-        raise DataError(f"{table.path}: hinge must be one of {HINGE_KINDS}, got {hinge!r}")
+        owners = {columns[c][0] for c in present}
+        hinge = owners.pop() if len(owners) == 1 else DEFAULT_KIND
+    try:
+        kind = hinge_kind(hinge)
+    except ParameterError as err:
+        raise DataError(f"{table.path}: {err}") from err
+    own = {v.column: v.name for v in kind.design_variables}
     missing = [c for c in ("amplitude_N", "eta") if c not in table.header]
-    if "clearance_mm" not in table.header and "preload_N" not in table.header:
-        missing.append("clearance_mm or preload_N")
+    if own and not any(c in table.header for c in own):
+        missing.append(" or ".join(own))
     if missing:
         raise DataError(
             f"{table.path}: missing column(s) {missing}; columns are {list(table.header)}"
         )
     cases = []
     for i in range(len(table.rows)):
-        v = {
-            c: _number(table, i, c) if c in table.header else 0.0
-            for c in ("clearance_mm", "preload_N", "amplitude_N", "eta")
-        }
+        v = {c: _number(table, i, c) for c in ("amplitude_N", "eta")}
         if not 0 < v["eta"] <= 1:
             raise DataError(f"{table.where(i, 'eta')}: η must be in (0, 1], got {v['eta']:g}")
-        for c in ("clearance_mm", "preload_N", "amplitude_N"):
-            if v[c] < 0 or (c == "amplitude_N" and v[c] == 0):
+        if v["amplitude_N"] <= 0:
+            raise DataError(
+                f"{table.where(i, 'amplitude_N')}: must be > 0, got {v['amplitude_N']:g}"
+            )
+        design = {}
+        for column in present:
+            x = _number(table, i, column)
+            if x < 0:
+                raise DataError(f"{table.where(i, column)}: must be ≥ 0, got {x:g}")
+            if column in own:
+                design[own[column]] = x
+            elif x != 0.0:
                 raise DataError(
-                    f"{table.where(i, c)}: must be {'> 0' if c == 'amplitude_N' else '≥ 0'}, got {v[c]:g}"
+                    f"{table.where(i, column)}: {column} = {x:g}, but the {kind.title} has no {column}"
                 )
         cases.append(
             Case(
                 case_id=f"row{i + 1}",
-                hinge=hinge,
-                clearance_mm=v["clearance_mm"],
-                preload_n=v["preload_N"],
+                hinge=kind.name,
+                values=design,
                 amplitude_n=v["amplitude_N"],
                 eta=v["eta"],
             )

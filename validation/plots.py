@@ -15,15 +15,28 @@ from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
-from validation.compare import METRIC_LABELS, METRICS, CaseComparison, Comparison
+from fe.kinds import hinge_kind
+from validation.compare import METRIC_LABELS, METRICS, CaseComparison, Comparison, group_name
 from validation.loops import branch_residuals
 
 UM_PER_MM = 1e3
-DESIGN_VARIABLES = (
-    ("clearance_mm", "clearance Δr [mm]"),
-    ("preload_n", "preload [N]"),
-    ("amplitude_n", "amplitude Fg [N]"),
-)
+AMPLITUDE = ("amplitude_n", "amplitude Fg [N]")
+
+
+def _variables(cmp: Comparison) -> list[tuple[str, str]]:
+    """(name, axis label) of every design variable of the cases' kinds, then the amplitude."""
+    out: dict[str, str] = {}
+    for hinge in dict.fromkeys(c.case.hinge for c in cmp.cases):
+        for v in hinge_kind(hinge).design_variables:
+            out.setdefault(v.name, f"{v.word} {v.symbol} [{v.unit}]")
+    return [*out.items(), AMPLITUDE]
+
+
+def _value(c: CaseComparison, name: str) -> float:
+    """A case's design value (0 where its kind has no such variable) or its amplitude."""
+    if name == AMPLITUDE[0]:
+        return c.case.amplitude_n
+    return float(c.case.values.get(name, 0.0))
 
 
 def _save(fig: Figure, path: Path) -> Path:
@@ -35,10 +48,8 @@ def _save(fig: Figure, path: Path) -> Path:
 def _title(c: CaseComparison) -> str:
     k = c.case
     verdict = "pass" if c.passed else "FAIL: " + ", ".join(METRIC_LABELS[m] for m in c.failed)
-    return (
-        f"{k.case_id}: Δr = {k.clearance_mm:g} mm, preload = {k.preload_n:g} N, "
-        f"Fg = {k.amplitude_n:g} N\n{verdict}"
-    )
+    where = ", ".join(filter(None, [k.describe(), f"Fg = {k.amplitude_n:g} N"]))
+    return f"{k.case_id}: {where}\n{verdict}"
 
 
 def plot_case_loops(c: CaseComparison, path: Path) -> Path:
@@ -97,11 +108,10 @@ def plot_case_loops(c: CaseComparison, path: Path) -> Path:
 
 
 def _design_axes(cmp: Comparison) -> tuple[str, str]:
-    """Pick the design variable that varies (clearance, else preload) for the map's y axis."""
-    clear = {c.case.clearance_mm for c in cmp.cases}
-    pre = {c.case.preload_n for c in cmp.cases}
-    y = "preload_n" if len(pre) > 1 and len(clear) == 1 else "clearance_mm"
-    return "amplitude_n", y
+    """The map's axes: amplitude, and the first design variable that varies (else the first)."""
+    design = _variables(cmp)[:-1] or [AMPLITUDE]
+    varying = [n for n, _ in design if len({_value(c, n) for c in cmp.cases}) > 1]
+    return AMPLITUDE[0], (varying or [design[0][0]])[0]
 
 
 def plot_error_map(cmp: Comparison, path: Path, metric: str = "eta") -> Path:
@@ -112,8 +122,8 @@ def plot_error_map(cmp: Comparison, path: Path, metric: str = "eta") -> Path:
     """
     xk, yk = _design_axes(cmp)
     have = [c for c in cmp.cases if metric in c.errors]
-    x = np.array([getattr(c.case, xk) for c in have])
-    y = np.array([getattr(c.case, yk) for c in have])
+    x = np.array([_value(c, xk) for c in have])
+    y = np.array([_value(c, yk) for c in have])
     e = np.array([c.errors[metric] for c in have]) * 100
     lim = max(float(np.max(np.abs(e))) if e.size else 1.0, 1e-9)
     fig = Figure(figsize=(7.0, 5.0), layout="constrained")
@@ -133,8 +143,9 @@ def plot_error_map(cmp: Comparison, path: Path, metric: str = "eta") -> Path:
             fontsize=8,
         )
     fig.colorbar(sc, ax=ax, label=f"{METRIC_LABELS[metric]} error (model − measured) [%]")
-    ax.set_xlabel(dict(DESIGN_VARIABLES)[xk])
-    ax.set_ylabel(dict(DESIGN_VARIABLES)[yk])
+    labels = dict(_variables(cmp))
+    ax.set_xlabel(labels[xk])
+    ax.set_ylabel(labels[yk])
     ax.margins(0.25)
     ax.set_title(f"{METRIC_LABELS[metric]} error over the design space (○ pass, × fail)")
     return _save(fig, path)
@@ -143,10 +154,8 @@ def plot_error_map(cmp: Comparison, path: Path, metric: str = "eta") -> Path:
 def plot_residuals(cmp: Comparison, path: Path) -> Path:
     """Draw every metric's error against each design variable that varies, with the ±kσ band."""
     variables = [
-        (k, label)
-        for k, label in DESIGN_VARIABLES
-        if len({getattr(c.case, k) for c in cmp.cases}) > 1
-    ] or [DESIGN_VARIABLES[2]]
+        (k, label) for k, label in _variables(cmp) if len({_value(c, k) for c in cmp.cases}) > 1
+    ] or [AMPLITUDE]
     metrics = [m for m in METRICS if any(m in c.errors for c in cmp.cases)]
     fig = Figure(
         figsize=(max(3.6 * len(variables) + 1.0, 6.5), 1.9 * len(metrics) + 0.9),
@@ -160,7 +169,7 @@ def plot_residuals(cmp: Comparison, path: Path) -> Path:
         band = np.array([k * c.uncertainty[m] for c in have]) * 100
         for j, (var, label) in enumerate(variables):
             ax = axes[i, j]
-            x = np.array([getattr(c.case, var) for c in have])
+            x = np.array([_value(c, var) for c in have])
             ok = np.array([m not in c.failed for c in have])
             ax.errorbar(x, e, yerr=band, fmt="none", ecolor="0.6", capsize=3, lw=1)
             ax.plot(x[ok], e[ok], "o", color="C2", ms=5, label="within kσ")
@@ -178,29 +187,21 @@ def plot_residuals(cmp: Comparison, path: Path) -> Path:
 
 def plot_fingerprint(cmp: Comparison, path: Path) -> Path:
     """Draw W and η against amplitude on log–log axes, measured and model, with fitted slopes."""
-    n_groups = len({(c.case.hinge, c.case.clearance_mm, c.case.preload_n) for c in cmp.cases})
+    n_groups = len({group_name(c.case) for c in cmp.cases})
     fig = Figure(figsize=(12.0, 4.6 + 0.2 * n_groups), layout="constrained")
     ax_w, ax_e = fig.subplots(1, 2)
     fits = {f.group: f for f in cmp.fingerprint}
     groups: dict[str, list[CaseComparison]] = {}
     for c in cmp.cases:
-        key = f"{c.case.hinge}, Δr = {c.case.clearance_mm:g} mm, preload = {c.case.preload_n:g} N"
-        groups.setdefault(key, []).append(c)
+        groups.setdefault(group_name(c.case), []).append(c)
     hinges = {c.case.hinge for c in cmp.cases}
-    preloads = {c.case.preload_n for c in cmp.cases}
 
     def short(c: CaseComparison) -> str:
-        """The group's name with what every group shares left out (it is in the title)."""
+        """The group's name with the hinge left out when every group shares it (title)."""
         parts = [c.case.hinge] if len(hinges) > 1 else []
-        parts.append(f"Δr = {c.case.clearance_mm:g} mm")
-        if len(preloads) > 1:
-            parts.append(f"preload {c.case.preload_n:g} N")
-        return ", ".join(parts)
+        return ", ".join([*parts, c.case.describe() or "all cases"])
 
-    common = ", ".join(
-        ([next(iter(hinges))] if len(hinges) == 1 else [])
-        + ([f"preload {next(iter(preloads)):g} N"] if len(preloads) == 1 else [])
-    )
+    common = next(iter(hinges)) if len(hinges) == 1 else ""
     for g, (name, members) in enumerate(groups.items()):
         color = f"C{g % 10}"
         amps = np.array([c.case.amplitude_n for c in members])

@@ -34,8 +34,9 @@ import numpy.typing as npt
 
 from cad.errors import ParameterError, check_range
 from fe.hinge.cycle import CycleResult
+from fe.kinds import DEFAULT_KIND, hinge_kind
 from mesh.settings import MeshSettings
-from model.spec import ModelSpec
+from model.spec import DesignPoint, ModelSpec, hinge_at
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -56,22 +57,19 @@ MESH_RULE = (
     f"arc_grading × {ARC_GRADING_FACTOR} (≤ 100), increments_per_stage × {SYNTH_INCREMENT_FACTOR}"
 )
 
-DEFAULT_DESIGN: tuple[tuple[float, tuple[float, ...]], ...] = (
-    (0.0, (100.0, 250.0, 400.0)),
-    (0.1, (100.0, 250.0, 400.0)),
-    (0.2, (100.0, 250.0, 400.0)),
-)
-"""Default 9-case design of the general hinge: clearance [mm] → amplitudes [N] (3 × 3)."""
+SYNTH_AMPLITUDES_N = (100.0, 250.0, 400.0)
+"""Amplitudes of the default design at each level [N]."""
 
-DEFAULT_BEARING_DESIGN: tuple[tuple[float, tuple[float, ...]], ...] = (
-    (0.0, (100.0, 250.0, 400.0)),
-    (100.0, (100.0, 250.0, 400.0)),
-    (200.0, (100.0, 250.0, 400.0)),
-)
-"""Default 9-case design of the bearing hinge: preload [N] → amplitudes [N] (3 × 3)."""
 
-DESIGN_VARIABLE = {"general": ("clearance_mm", 10.0), "bearing": ("preload_n", 500.0)}
-"""Hinge kind → its design variable (the first number of a design entry) and its upper bound."""
+def default_design(kind: str) -> tuple[tuple[float, tuple[float, ...]], ...]:
+    """The default 9-case design of a kind: its design variable's ``synth_levels`` × 3 amplitudes.
+
+    The general hinge: Δr 0, 0.1, 0.2 mm; the bearing hinge: F_p 0, 100, 200 N; a kind
+    without a design variable: the amplitudes alone.
+    """
+    variables = hinge_kind(kind).design_variables
+    levels = variables[0].synth_levels if variables else (0.0,)
+    return tuple((x, SYNTH_AMPLITUDES_N) for x in levels)
 
 
 @dataclass(frozen=True)
@@ -118,21 +116,31 @@ class SynthCase:
     """One synthetic test.
 
     Attributes:
-        case_id: Its name (``dr<Δr>mm_F<Fg>N``; ``fp<F_p>N_F<Fg>N`` for the bearing hinge).
-        clearance_mm: Radial clearance Δr [mm] (0 for the bearing hinge).
+        case_id: Its name (``dr<Δr>mm_F<Fg>N``; ``fp<F_p>N_F<Fg>N`` for the bearing hinge:
+            the design variable's ``case_tag`` and unit).
         amplitude_n: Force amplitude Fg [N].
-        preload_n: Axial preload F_p of the bearing hinge [N]; None for the general hinge.
+        hinge: The hinge kind.
+        values: Its design values as (name, value) pairs (e.g. ``(("clearance_mm", 0.1),)``).
     """
 
     case_id: str
-    clearance_mm: float
     amplitude_n: float
-    preload_n: float | None = None
+    hinge: str = DEFAULT_KIND
+    values: tuple[tuple[str, float], ...] = ()
 
     @property
     def design_value(self) -> float:
-        """The case's design variable: Δr [mm] (general) or F_p [N] (bearing)."""
-        return self.clearance_mm if self.preload_n is None else self.preload_n
+        """The case's design variable (Δr [mm], F_p [N]); 0 for a kind without one."""
+        return self.values[0][1] if self.values else 0.0
+
+    def record(self) -> dict[str, Any]:
+        """The case as a flat JSON record: id, hinge, amplitude and each design value."""
+        return {
+            "case_id": self.case_id,
+            "hinge": self.hinge,
+            "amplitude_n": self.amplitude_n,
+            **dict(self.values),
+        }
 
 
 def finer_mesh(mesh: MeshSettings, arc_factor: float = ARC_GRADING_FACTOR) -> MeshSettings:
@@ -154,36 +162,34 @@ def finer_mesh(mesh: MeshSettings, arc_factor: float = ARC_GRADING_FACTOR) -> Me
 
 
 def design_cases(
-    design: Sequence[tuple[float, Sequence[float]]], kind: str = "general"
+    design: Sequence[tuple[float, Sequence[float]]], kind: str = DEFAULT_KIND
 ) -> tuple[SynthCase, ...]:
-    """Return the cases of a design (clearance or preload → amplitudes), in order.
+    """Return the cases of a design (design value → amplitudes), in order.
 
     Args:
-        design: Design value → amplitudes [N]; the value is the clearance [mm] of the
-            general hinge or the preload [N] of the bearing hinge (``DESIGN_VARIABLE``).
+        design: Design value → amplitudes [N]; the value is the kind's design variable
+            (the clearance [mm] of the general hinge, the preload [N] of the bearing hinge).
         kind: Hinge kind.
 
     Raises:
         ParameterError: An unknown kind, a design value out of range, a non-positive
             amplitude, or a repeated case.
     """
-    if kind not in DESIGN_VARIABLE:
-        raise ParameterError(f"kind must be one of {tuple(DESIGN_VARIABLE)}, got {kind!r}")
-    variable, top = DESIGN_VARIABLE[kind]
+    variables = hinge_kind(kind).design_variables[:1]
     out: list[SynthCase] = []
     seen: set[tuple[float, float]] = set()
     for x, amps in design:
-        check_range(variable, x, 0.0, top)
+        for v in variables:
+            v.check(x)
         for amp in amps:
             check_range("amplitude_n", amp, 0.0, 1e6, lo_open=True)
+            what = ", ".join([*(v.text(x) for v in variables), f"Fg = {amp:g} N"])
             if (x, amp) in seen:
-                what = f"Δr = {x:g} mm" if kind == "general" else f"F_p = {x:g} N"
-                raise ParameterError(f"case {what}, Fg = {amp:g} N is repeated")
+                raise ParameterError(f"case {what} is repeated")
             seen.add((x, amp))
-            if kind == "general":
-                out.append(SynthCase(f"dr{x:g}mm_F{amp:g}N", x, amp))
-            else:
-                out.append(SynthCase(f"fp{x:g}N_F{amp:g}N", 0.0, amp, preload_n=x))
+            tag = "".join(f"{v.case_tag}{x:g}{v.unit}_" for v in variables)
+            values = tuple((v.name, float(x) + 0.0) for v in variables)
+            out.append(SynthCase(f"{tag}F{amp:g}N", float(amp), hinge_kind(kind).name, values))
     if not out:
         raise ParameterError("the design has no cases")
     return tuple(out)
@@ -355,13 +361,12 @@ def _data_run(
         (cycle result, prepared geometry, the spec used).
     """
     from cad.errors import MeshQualityError
-    from model.spec import DesignPoint
 
-    point = DesignPoint(case.amplitude_n, case.clearance_mm, case.preload_n)
+    point = DesignPoint(case.amplitude_n, dict(case.values))
     try:
         return (
             service.run_point(data_spec, point),
-            service.prepare(data_spec, case.clearance_mm),
+            service.prepare(data_spec, point),
             data_spec,
         )
     except MeshQualityError as err:
@@ -377,28 +382,20 @@ def _data_run(
             raise MeshQualityError(
                 f"the synthetic-data mesh (contact size × {CONTACT_SIZE_FACTOR}, arc grading × "
                 f"{ARC_GRADING_FACTOR} or ÷ {ARC_GRADING_FACTOR}) has a distorted element at "
-                f"Δr = {case.clearance_mm:g} mm ({err2}); give the model a finer mesh "
+                f"{case.case_id} ({err2}); give the model a finer mesh "
                 "([mesh] size_mm / contact_size_mm) or less arc_grading"
             ) from err
-        adapted[case.clearance_mm] = (
+        adapted[case.design_value] = (
             f"arc grading {model_mesh.arc_grading:g} distorted an element ({err}); "
             f"used {softer.arc_grading:g}"
         )
-        return result, service.prepare(alt, case.clearance_mm), alt
+        return result, service.prepare(alt, point), alt
 
 
-def _n_contact_points(prepared: Any) -> int:
-    """Contact points of a prepared geometry: pin–hole (general); 2 per ball and the fits' (bearing)."""
-    from fe.bearing.fits import FitSystem
-    from fe.bearing.system import BearingSystem
-
-    system = prepared.system
-    if isinstance(system, FitSystem):
-        return int(system.n_points) + 2 * int(system.n_balls)
-    if isinstance(system, BearingSystem):
-        return 2 * int(system.n_balls)
-    configs = prepared.effect_configs or next(iter(prepared.configs.values()))
-    return len(configs[1].geo.slave)
+def _n_contact_points(spec: Any, prepared: Any, result: Any, case: SynthCase) -> int:
+    """Contact points of a prepared geometry, as the kind's cycle summary counts them."""
+    params = hinge_at(spec, DesignPoint(case.amplitude_n, dict(case.values)))
+    return int(spec.hinge_kind.summary(prepared.built, params, result).get("n_contact_pairs", 0))
 
 
 def _synthesize(
@@ -412,10 +409,9 @@ def _synthesize(
     from model.service import ModelService
 
     for c in cases:
-        if (c.preload_n is not None) != (spec.kind == "bearing"):
+        if c.hinge != spec.kind:
             raise ParameterError(
-                f"case {c.case_id} is a {'bearing' if c.preload_n is not None else 'general'}-"
-                f"hinge case, but the model is kind {spec.kind!r}"
+                f"case {c.case_id} is a {c.hinge}-hinge case, but the model is kind {spec.kind!r}"
             )
     truth = validate_effects({**spec.effects, **hidden})
     mesh_settings = finer_mesh(spec.mesh)
@@ -431,14 +427,15 @@ def _synthesize(
         effects=truth,
     )
     t0 = time.perf_counter()
-    rows = ["case_id,hinge,clearance_mm,preload_N,amplitude_N,loop_file,temperature_C"]
+    columns = [v.column for v in spec.hinge_kind.design_variables]
+    rows = [",".join(["case_id", "hinge", *columns, "amplitude_N", "loop_file", "temperature_C"])]
     records: list[dict[str, Any]] = []
     index = {c.case_id: i for i, c in enumerate(cases)}
     service = ModelService()
-    ordered = sorted(cases, key=lambda c: c.clearance_mm)
+    ordered = sorted(cases, key=lambda c: c.values)  # one geometry after the other
     adapted: dict[float, str] = {}
     for case in ordered:
-        result, prepared, _used = _data_run(service, data_spec, case, adapted)
+        result, prepared, used = _data_run(service, data_spec, case, adapted)
         F, d = machine_path(result)
         m = measure(F, d, settings, index[case.case_id])
         loop_file = f"loops/{case.case_id}.csv"
@@ -446,21 +443,20 @@ def _synthesize(
         metrics = result.metrics()
         records.append(
             {
-                **dataclasses.asdict(case),
+                **case.record(),
                 "loop_file": loop_file,
                 "n_samples": int(m.time_s.size),
                 "duration_s": float(m.time_s[-1]),
                 "force_offset_N": m.force_offset_n,
                 "disp_offset_mm": m.disp_offset_mm,
-                "n_contact_points": _n_contact_points(prepared),
+                "n_contact_points": _n_contact_points(used, prepared, result, case),
                 "fe_metrics": {k: float(v) for k, v in metrics.items()},
             }
         )
     for c in cases:  # cases.csv in the order given
-        rows.append(
-            f"{c.case_id},{spec.kind},{c.clearance_mm:g},{c.preload_n or 0.0:g},"
-            f"{c.amplitude_n:g},loops/{c.case_id}.csv,21"
-        )
+        design = [f"{x:g}" for _, x in c.values]
+        row = [c.case_id, spec.kind, *design, f"{c.amplitude_n:g}", f"loops/{c.case_id}.csv", "21"]
+        rows.append(",".join(row))
     out.mkdir(parents=True, exist_ok=True)
     (out / "cases.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
     manifest = {

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from cad.errors import DataError, ParameterError
-from model.spec import ModelSpec
+from model.spec import DesignPoint, ModelSpec, complete_point, describe_point, point_label
 from validation.compare import CompareSettings, Comparison, ModelResult
 from validation.measurements import Case, Loop
 
@@ -37,38 +37,24 @@ def _strict(obj: Any) -> Any:
 
 def _check_cases(spec: ModelSpec, cases: Sequence[Case]) -> None:
     """Refuse cases the model cannot be run at, naming the case and the field."""
-    if spec.kind not in ("general", "bearing"):
-        raise ParameterError(f"compare supports kinds 'general' and 'bearing', got {spec.kind!r}")
     for c in cases:
         if c.hinge != spec.kind:
             raise DataError(
                 f"case {c.case_id!r}: hinge {c.hinge!r}, but the model is the {spec.kind} hinge"
             )
-        if spec.kind == "general" and c.preload_n != 0.0:
-            raise DataError(
-                f"case {c.case_id!r}: preload_N = {c.preload_n:g}, but the general hinge has no preload"
-            )
-        if spec.kind == "bearing" and c.clearance_mm != 0.0:
-            raise DataError(
-                f"case {c.case_id!r}: clearance_mm = {c.clearance_mm:g}, but the bearing hinge "
-                "has no clearance"
-            )
+        try:
+            point_of(spec, c)
+        except ParameterError as err:
+            raise DataError(f"case {c.case_id!r}: {err}") from err
 
 
-def point_of(spec: ModelSpec, case: Case) -> Any:
-    """The design point of a case: (clearance, amplitude), or (preload, amplitude) for bearings."""
-    from model.spec import DesignPoint
+def point_of(spec: ModelSpec, case: Case) -> DesignPoint:
+    """The design point of a case, complete over the kind's design variables.
 
-    if spec.kind == "bearing":
-        return DesignPoint(case.amplitude_n, preload_n=case.preload_n)
-    return DesignPoint(case.amplitude_n, case.clearance_mm)
-
-
-def run_key(point: Any) -> tuple[float, float]:
-    """Key of a model run: (clearance, amplitude), or (preload, amplitude) for bearings."""
-    if point.preload_n is not None:
-        return (point.preload_n, point.amplitude_n)
-    return (point.clearance_mm, point.amplitude_n)
+    Raises:
+        ParameterError: For a value out of its variable's range.
+    """
+    return complete_point(spec, DesignPoint(case.amplitude_n, case.values))
 
 
 def run_model_for_cases(
@@ -77,7 +63,7 @@ def run_model_for_cases(
     *,
     with_free_play: bool = True,
     service: Any = None,
-) -> tuple[dict[str, ModelResult], dict[tuple[float, float], Any]]:
+) -> tuple[dict[str, ModelResult], dict[DesignPoint, Any]]:
     """Run the model's cycle at every (clearance or preload, amplitude) of the cases.
 
     Through the model service (``model.service.ModelService``; a new one if None): one mesh,
@@ -87,41 +73,37 @@ def run_model_for_cases(
     ``hingelab calibrate``) are switched on.
 
     Returns:
-        (case_id → ModelResult, ``run_key`` → CycleResult).
+        (case_id → ModelResult, design point → CycleResult).
     """
     from model.service import ModelService
 
     service = ModelService() if service is None else service
     points = {c.case_id: point_of(spec, c) for c in cases}
-    runs: dict[tuple[float, float], Any] = {}
+    runs: dict[DesignPoint, Any] = {}
     for run in service.run(spec, points.values(), keep_going=False):
-        runs[run_key(run.point)] = run.result
+        runs[run.point] = run.result
     out = {}
     for c in cases:
         p = points[c.case_id]
-        r = runs[run_key(p)]
+        r = runs[p]
         # a stated η (an η-only table, like the paper's) excludes the free play, as
         # `hingelab cycle` reports it; a measured loop includes it (the grips see it)
         free_play = with_free_play and c.loop is not None
         F, d = r.machine_path() if free_play else r.loop_arrays()[:2]
-        where = (
-            f"F_p = {c.preload_n:g} N" if spec.kind == "bearing" else f"Δr = {c.clearance_mm:g} mm"
-        )
-        source = f"model: {where}, Fg = {c.amplitude_n:g} N"
+        source = f"model: {describe_point(spec, p)}"
         out[c.case_id] = ModelResult(Loop(F, d, None, source), r.metrics())
     return out, runs
 
 
 def _write_model_loops(
-    runs: dict[tuple[float, float], Any], out: Path, free_play: bool, kind: str = "general"
+    spec: ModelSpec, runs: dict[DesignPoint, Any], out: Path, free_play: bool
 ) -> list[str]:
     folder = out / "model_loops"
     folder.mkdir(parents=True, exist_ok=True)
     files = []
-    for (x, amp), r in runs.items():
+    for point, r in runs.items():
         F, d = r.machine_path() if free_play else r.loop_arrays()[:2]
-        name = f"preload_{x:g}N" if kind == "bearing" else f"clearance_{x:g}mm"
-        path = folder / f"{name}_F{amp:g}N.csv"
+        path = folder / f"{point_label(spec, point)}.csv"
         np.savetxt(
             path,
             np.column_stack([F, d]),
@@ -163,7 +145,7 @@ def compare_and_write(
     models, runs = run_model_for_cases(spec, data.cases, with_free_play=free_play)
     cmp = compare(models, data, settings)
     out.mkdir(parents=True, exist_ok=True)
-    files: dict[str, Any] = {"model_loops": _write_model_loops(runs, out, free_play, spec.kind)}
+    files: dict[str, Any] = {"model_loops": _write_model_loops(spec, runs, out, free_play)}
     if plots:
         from validation.plots import write_comparison_plots
 

@@ -10,9 +10,10 @@ import pytest
 from cad.errors import ParameterError
 from cad.general import GeneralHingeParams
 from fe.hinge.protocol import CycleSettings
+from fe.kinds import hinge_kind
 from mesh.settings import MeshSettings
 from model.service import ModelService
-from model.spec import DesignPoint, ModelSpec, result_key
+from model.spec import DesignPoint, ModelSpec, point_label, result_key
 from model.store import ResultStore
 
 pytest.importorskip("gmsh")
@@ -28,9 +29,11 @@ def _spec(**cycle):
 
 
 def test_result_key_changes_with_every_input_and_only_then():
-    spec, p = _spec(), DesignPoint(300.0, 0.0)
+    spec, p = _spec(), DesignPoint(300.0, {"clearance_mm": 0.0})
     key = result_key(spec, p)
-    assert result_key(_spec(), DesignPoint(300, -0.0)) == key  # same point, other spelling
+    assert (
+        result_key(_spec(), DesignPoint(300, {"clearance_mm": -0.0})) == key
+    )  # same point, other spelling
     changed = [
         result_key(_spec(mu=0.1), p),
         result_key(_spec(increments_per_stage=8), p),
@@ -39,8 +42,8 @@ def test_result_key_changes_with_every_input_and_only_then():
             dataclasses.replace(spec, effects={"frame_compliance": {"compliance_mm_per_n": 1e-5}}),
             p,
         ),
-        result_key(spec, DesignPoint(301.0, 0.0)),
-        result_key(spec, DesignPoint(300.0, 0.1)),
+        result_key(spec, DesignPoint(301.0, {"clearance_mm": 0.0})),
+        result_key(spec, DesignPoint(300.0, {"clearance_mm": 0.1})),
     ]
     assert len({key, *changed}) == len(changed) + 1
 
@@ -85,8 +88,8 @@ def test_run_cycle_refuses_a_clearance_the_mesh_does_not_have():
     from fe.hinge.cycle import run_cycle
 
     service = ModelService()
-    prepared = service.prepare(_spec(), 0.1)
-    assert prepared.clearance_mm == pytest.approx(0.1, abs=1e-12)
+    prepared = service.prepare(_spec(), DesignPoint(300.0, {"clearance_mm": 0.1}))
+    assert prepared.built.structure["clearance_mm"] == pytest.approx(0.1, abs=1e-12)
     with pytest.raises(ParameterError, match="does not match the mesh"):
         run_cycle(prepared.system, 0.2, CycleSettings())
 
@@ -99,21 +102,21 @@ def test_design_point_range_is_checked():
 def _bearing_spec():
     from cad.bearing import BearingHingeParams
 
-    mesh = MeshSettings.for_hinge(
-        "bearing", balls=False, size_mm=4.0, contact_size_mm=0.8, part_sizes_mm=(("ring", 1.2),)
+    mesh = hinge_kind("bearing").mesh_settings(
+        size_mm=4.0, contact_size_mm=0.8, part_sizes_mm=(("ring", 1.2),)
     )
     return ModelSpec("bearing", BearingHingeParams(), mesh, CycleSettings(increments_per_stage=8))
 
 
 def test_bearing_preloads_share_one_geometry_and_round_trip_the_store(tmp_path):
     spec = _bearing_spec()
-    points = [DesignPoint(200.0, preload_n=fp) for fp in (0.0, 100.0)]
+    points = [DesignPoint(200.0, {"preload_n": fp}) for fp in (0.0, 100.0)]
     assert result_key(spec, points[0]) != result_key(spec, points[1])
     service = ModelService(store=ResultStore(tmp_path))
     runs = service.run(spec, points)
     assert all(r.ok for r in runs)
     assert len(service._prepared) == 1  # the preload is a load: one mesh, one factorisation
-    assert [r.point.label() for r in runs] == ["p0_F200", "p100_F200"]
+    assert [point_label(spec, r.point) for r in runs] == ["p0_F200", "p100_F200"]
     again = ModelService(store=ResultStore(tmp_path)).run(spec, points)
     assert all(r.cached for r in again)
     for first, second in zip(runs, again, strict=True):
@@ -130,12 +133,14 @@ def test_bearing_point_and_spec_mistakes_are_named():
     from cad.bearing import BallModel, BearingHingeParams, Interfaces
 
     spec = _bearing_spec()
-    with pytest.raises(ParameterError, match="clearance_mm must be 0 for the bearing hinge"):
-        result_key(spec, DesignPoint(200.0, clearance_mm=0.1))
-    with pytest.raises(ParameterError, match="preload_n applies to the bearing hinge only"):
-        result_key(_spec(), DesignPoint(200.0, preload_n=50.0))
-    with pytest.raises(ParameterError, match="preload_n must be in"):
-        DesignPoint(200.0, preload_n=-5.0)
+    with pytest.raises(
+        ParameterError, match="clearance_mm is not a design variable of the bearing"
+    ):
+        result_key(spec, DesignPoint(200.0, {"clearance_mm": 0.1}))
+    with pytest.raises(ParameterError, match="preload_n is not a design variable of the general"):
+        result_key(_spec(), DesignPoint(200.0, {"preload_n": 50.0}))
+    with pytest.raises(ParameterError, match=r"preload_n must be in \[0, 500\], got -5"):
+        result_key(spec, DesignPoint(200.0, {"preload_n": -5.0}))
     full = dataclasses.replace(
         spec, hinge=BearingHingeParams(ball_model=BallModel.FULL, interfaces=Interfaces.CONTACT)
     )
@@ -162,7 +167,7 @@ def test_a_result_of_an_older_store_format_is_recomputed_not_an_error(tmp_path):
 @pytest.mark.slow  # 13 s (two bearing systems)
 def test_a_loop_effect_applies_to_the_bearing_hinge_and_a_contact_effect_is_refused():
     spec = _bearing_spec()
-    point = DesignPoint(300.0, preload_n=100.0)
+    point = DesignPoint(300.0, {"preload_n": 100.0})
     bare = ModelService().run_point(spec, point)
     framed_spec = dataclasses.replace(
         spec, effects={"frame_compliance": {"compliance_mm_per_n": 2e-5}}

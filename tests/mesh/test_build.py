@@ -9,6 +9,7 @@ import pytest
 
 from cad.errors import MeshQualityError
 from cad.general import GeneralHingeParams, make_general_hinge
+from fe.kinds import hinge_kind
 from mesh.hexmesh import HexMesh
 from mesh.quality import check_quality, hex_volumes
 from mesh.settings import MeshSettings
@@ -143,21 +144,21 @@ def test_bad_mesh_settings(kwargs, name):
 
 
 def test_per_part_sizes_and_hinge_defaults():
-    s = MeshSettings.for_hinge("bearing")
+    s = hinge_kind("bearing").mesh_settings(cycle=False)
     assert s.size_for("ball_0_3") == pytest.approx(0.6)
     assert s.size_for("inner_ring_1") == pytest.approx(0.8)
     assert s.size_for("tang") == pytest.approx(s.size_mm)
-    assert MeshSettings.for_hinge("bearing", refinement=1).size_for("ball_0_3") == pytest.approx(
-        0.3
-    )
-    assert MeshSettings.for_hinge("general") == MeshSettings()
+    assert hinge_kind("bearing").mesh_settings(cycle=False, refinement=1).size_for(
+        "ball_0_3"
+    ) == pytest.approx(0.3)
+    assert hinge_kind("general").mesh_settings() == MeshSettings()
 
 
 def test_unknown_hinge_kind_is_refused():
     from cad.errors import ParameterError
 
     with pytest.raises(ParameterError, match="hinge kind"):
-        MeshSettings.for_hinge("telescope")
+        hinge_kind("telescope")
 
 
 def test_strong_grading_on_coarse_arcs_does_not_invert():

@@ -9,6 +9,7 @@ import pytest
 
 from cad.errors import ParameterError
 from cad.general import GeneralHingeParams, make_general_hinge
+from fe.kinds import hinge_kind
 from mesh.settings import MeshSettings
 
 pytest.importorskip("gmsh")
@@ -124,6 +125,6 @@ def test_bearing_pin_is_not_banded():
 
     bearing = make_bearing_hinge(BearingHingeParams())
     pin = next(p for p in bearing.parts if p.name == "pin")
-    settings = MeshSettings.for_hinge("bearing", balls=False)
+    settings = hinge_kind("bearing").mesh_settings()
     assert math.isfinite(settings.pin_band_mm)
     assert _pin_band(bearing, pin, settings) is None

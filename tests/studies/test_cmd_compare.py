@@ -53,7 +53,7 @@ def dataset(tmp_path_factory):
 
     root = tmp_path_factory.mktemp("compare")
     spec, model_path = _model_file(root / "MODEL.toml")
-    results, _ = run_model_for_cases(spec, [Case("ref", "general", 0.0, 0.0, 400.0)])
+    results, _ = run_model_for_cases(spec, [Case("ref", "general", {"clearance_mm": 0.0}, 400.0)])
     F0, d0 = results["ref"].loop.force_n, results["ref"].loop.displacement_mm
     data = root / "data"
     data.mkdir()
@@ -145,12 +145,13 @@ def test_table_printed_from_the_written_files(dataset, capsys):
         pytest.skip("needs the CLI run of the previous test")
     ms = read_measurement_set(data)
     models = {
-        c.case_id: ModelResult(read_loop_csv(loops / f"clearance_0mm_F{c.amplitude_n:g}N.csv"))
+        c.case_id: ModelResult(read_loop_csv(loops / f"c0.000_F{c.amplitude_n:g}.csv"))
         for c in ms.cases
     }
     table = format_table(compare(models, ms))
     lines = table.splitlines()
-    assert lines[0].split()[:3] == ["case", "Δr", "mm"]
+    assert lines[0].split()[:3] == ["case", "design", "Fg"]
+    assert "Δr = 0 mm" in next(line for line in lines if line.startswith("c200"))
     assert "FAIL" in next(line for line in lines if line.startswith("c300_bad"))
     assert "pass" in next(line for line in lines if line.startswith("c200"))
     assert "2/3 cases pass" in table
@@ -216,7 +217,7 @@ def test_compare_runs_the_models_effects(tmp_path):
     spec, _ = _model_file(tmp_path / "MODEL.toml")
     c_f = 2e-5  # mm/N
     framed = dataclasses.replace(spec, effects={"frame_compliance": {"compliance_mm_per_n": c_f}})
-    case = [Case("c", "general", 0.0, 0.0, 400.0)]
+    case = [Case("c", "general", {"clearance_mm": 0.0}, 400.0)]
     bare, _ = run_model_for_cases(spec, case)
     with_frame, _ = run_model_for_cases(framed, case)
     d0 = bare["c"].metrics["disp_at_peak_mm"]
@@ -233,9 +234,11 @@ def test_eta_only_case_is_compared_without_the_free_play(tmp_path):
     from validation.workflow import run_model_for_cases
 
     spec, _ = _model_file(tmp_path / "MODEL.toml")
-    case = Case("e", "general", 0.1, 0.0, 400.0, eta=0.05)
+    case = Case("e", "general", {"clearance_mm": 0.1}, 400.0, eta=0.05)
     models, runs = run_model_for_cases(spec, [case])
-    fe_eta = runs[(0.1, 400.0)].metrics()["eta"]
+    from model.spec import DesignPoint
+
+    fe_eta = runs[DesignPoint(400.0, {"clearance_mm": 0.1})].metrics()["eta"]
     (c,) = compare(models, MeasurementSet((case,), tmp_path)).cases
     # same η up to the chord that closes the loop (0.2 % here); with the free play in δ_max
     # it would be 40× smaller (δ_max 0.2 mm + 5 µm instead of 5 µm)

@@ -77,14 +77,20 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
     [
         (["--amplitude", "-1"], "--amplitude: amplitude_n"),
         (["--mu", "-0.3"], "--mu: mu"),
-        (["--preload", "50"], "--preload applies to the bearing hinge only"),
-        (["--hinge", "bearing", "--clearance", "0.1"], "--clearance: the bearing hinge has no"),
+        (
+            ["--preload", "50"],
+            "--preload does not apply to the general hinge (got --preload 50.0); it is a parameter of the bearing",
+        ),
+        (
+            ["--hinge", "bearing", "--clearance", "0.1"],
+            "--clearance does not apply to the bearing hinge (got --clearance 0.1); it is a parameter of the gen",
+        ),
         (["--hinge", "bearing", "--preload", "600"], "--preload: preload_n must be in [0, 500]"),
         (
             ["--hinge", "bearing", "--ball-model", "full", "--interfaces", "contact"],
             "ball_model = 'full' runs with interfaces = 'bonded' only",
         ),
-        (["--ball-model", "hertz"], "--ball-model applies to the bearing hinge only"),
+        (["--ball-model", "hertz"], "--ball-model does not apply to the general hinge"),
     ],
     ids=[
         "negative-amplitude",

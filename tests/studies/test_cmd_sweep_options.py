@@ -27,10 +27,14 @@ from studies.cli import main
         ),
         (
             ["sweep", "--hinge", "bearing", "--clearance", "0.1"],
-            "--clearance: the bearing hinge has no clearance",
+            "--clearance is not a design variable of the bearing hinge (got --clearance 0.1); "
+            "its design variables: preload_n",
         ),
-        (["sweep", "--preload", "100"], "--preload applies to --hinge bearing only"),
-        (["sweep", "--interfaces", "contact"], "--interfaces applies to --hinge bearing only"),
+        (["sweep", "--preload", "100"], "--preload is not a design variable of the general hinge"),
+        (
+            ["sweep", "--interfaces", "contact"],
+            "--interfaces does not apply to the general hinge (got --interfaces contact); it is a param",
+        ),
     ],
     ids=[
         "sweep-amplitude",

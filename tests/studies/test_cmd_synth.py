@@ -80,7 +80,10 @@ def test_writes_a_readable_measurement_set_reaching_the_amplitudes(dataset):
     from validation.measurements import read_measurement_set
 
     ms = read_measurement_set(dataset)  # checks amplitude, stages, format
-    assert [(c.clearance_mm, c.amplitude_n) for c in ms.cases] == [(0.0, 300.0), (0.1, 300.0)]
+    assert [(c.values["clearance_mm"], c.amplitude_n) for c in ms.cases] == [
+        (0.0, 300.0),
+        (0.1, 300.0),
+    ]
     manifest = json.loads((dataset / "manifest.json").read_text())
     for case, rec in zip(ms.cases, manifest["cases"], strict=True):
         assert case.loop.time_s is not None

@@ -12,7 +12,7 @@ import pytest
 
 from cad.bearing import BearingHingeParams, Interfaces
 from fe.hinge.protocol import CycleSettings
-from mesh.settings import MeshSettings
+from fe.kinds import hinge_kind
 from model.file import write_model
 from model.spec import ModelSpec
 from studies.cli import main
@@ -26,7 +26,7 @@ def _model(tmp_path: Path) -> Path:
     spec = ModelSpec(
         "bearing",
         BearingHingeParams(preload_n=100.0, interfaces=Interfaces.CONTACT),
-        MeshSettings.for_hinge("bearing", balls=False, **COARSE),
+        hinge_kind("bearing").mesh_settings(**COARSE),
         CycleSettings(amplitude_n=400.0, increments_per_stage=4, mu=0.2),
     )
     return write_model(spec, tmp_path / "MODEL.toml")

@@ -109,10 +109,10 @@ def test_the_full_run_is_the_two_shipped_study_files():
 
     sweeps = PaperStudy().sweeps()
     g, m = sweeps["general"], sweeps["modified"]
-    assert {(p.clearance_mm, p.amplitude_n) for p in g.points()} == {
+    assert {(p.values["clearance_mm"], p.amplitude_n) for p in g.design_points()} == {
         (c, a) for c in CLEARANCES for a in GRID
     }
-    assert {(p.preload_n, p.amplitude_n) for p in m.points()} == {
+    assert {(p.values["preload_n"], p.amplitude_n) for p in m.design_points()} == {
         (f, a) for f in PRELOADS for a in GRID
     }
     shipped = read_study(Path(studies.__file__).parent / "examples" / "paper_modified_5x5.toml")

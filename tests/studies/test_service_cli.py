@@ -58,7 +58,7 @@ def test_compare_reads_a_model_file_with_effects(tmp_path, capsys):
     spec = dataclasses.replace(base, effects={"frame_compliance": {"compliance_mm_per_n": 2e-5}})
     model = write_model(spec, tmp_path / "MODEL.toml")
     assert "[effects." in model.read_text()
-    results, _ = run_model_for_cases(spec, [Case("c1", "general", 0.0, 0.0, 300.0)])
+    results, _ = run_model_for_cases(spec, [Case("c1", "general", {"clearance_mm": 0.0}, 300.0)])
     loop = results["c1"].loop
     data = tmp_path / "data"
     data.mkdir()

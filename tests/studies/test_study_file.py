@@ -204,9 +204,9 @@ def test_a_bearing_study_varies_preload_and_amplitude(tmp_path):
     assert s.points == ((0.0, 200.0), (0.0, 400.0), (200.0, 200.0), (200.0, 400.0))
     assert s.surface is not None
     assert s.surface.x == ("preload_N", "amplitude_N")
-    pts = s.sweep_settings().points()
-    assert [(p.preload_n, p.amplitude_n, p.clearance_mm) for p in pts] == [
-        (fp, a, 0.0) for fp, a in s.points
+    pts = s.sweep_settings().design_points()
+    assert [(p.values, p.amplitude_n) for p in pts] == [
+        ({"preload_n": fp}, a) for fp, a in s.points
     ]
     # a variable left out stays at the model's value; [hinge] sets the bearing's numbers
     text = BEARING.replace("levels = [0.0, 100.0, 200.0]", "").replace("[design.preload_N]\n", "")
@@ -307,14 +307,12 @@ def test_sweep_points_follow_the_hinge_kind():
     from model.spec import DesignPoint
     from studies.sweep import SweepSettings
 
-    bearing = SweepSettings(
-        hinge="bearing", points_mm_n=((100.0, 200.0), (100, 200.0), (0.0, 50.0))
-    )
-    assert bearing.points() == [
-        DesignPoint(200.0, preload_n=100.0),
-        DesignPoint(50.0, preload_n=0.0),
+    bearing = SweepSettings(hinge="bearing", points=((100.0, 200.0), (100, 200.0), (0.0, 50.0)))
+    assert bearing.design_points() == [
+        DesignPoint(200.0, {"preload_n": 100.0}),
+        DesignPoint(50.0, {"preload_n": 0.0}),
     ]
-    general = SweepSettings(points_mm_n=((0.1, 200.0),))
-    assert general.points() == [DesignPoint(200.0, clearance_mm=0.1)]
+    general = SweepSettings(points=((0.1, 200.0),))
+    assert general.design_points() == [DesignPoint(200.0, {"clearance_mm": 0.1})]
     with pytest.raises(ParameterError, match=r"preload_n must be in \[0, 500\], got 600"):
-        SweepSettings(hinge="bearing", points_mm_n=((600.0, 200.0),))
+        SweepSettings(hinge="bearing", points=((600.0, 200.0),))

@@ -27,7 +27,7 @@ def test_sweep_records_failures_goes_on_and_resumes(tmp_path, monkeypatch):
     from model.service import ModelService
 
     settings = SweepSettings(
-        clearances_mm=(0.0,),
+        levels=(0.0,),
         amplitudes_n=(100.0, 250.0, 400.0),
         mesh=COARSE,
         increments_per_stage=6,
@@ -66,7 +66,7 @@ def test_sweep_records_failures_goes_on_and_resumes(tmp_path, monkeypatch):
 
 def test_sweep_on_dask_workers(tmp_path):
     settings = SweepSettings(
-        clearances_mm=(0.0, 0.1),
+        levels=(0.0, 0.1),
         amplitudes_n=(200.0,),
         mesh=COARSE,
         increments_per_stage=6,
@@ -87,8 +87,8 @@ def test_bad_sweep_settings():
 
     with pytest.raises(ParameterError, match="workers"):
         SweepSettings(workers=0)
-    with pytest.raises(ParameterError, match="at least one clearance"):
-        SweepSettings(clearances_mm=())
+    with pytest.raises(ParameterError, match="at least one level"):
+        SweepSettings(levels=())
     # every parameter is checked before anything is meshed
     with pytest.raises(ParameterError, match="amplitude_n"):
         SweepSettings(amplitudes_n=(100.0, -5.0))

@@ -32,7 +32,7 @@ def ellipse_loop(fg, d, *, n=80, phi=PHI, noise=0.0, seed=0, source="loop"):
 
 
 def case(cid, amp, loop=None, clearance=0.0, eta=None):
-    return Case(cid, "general", clearance, 0.0, amp, loop=loop, eta=eta)
+    return Case(cid, "general", {"clearance_mm": clearance}, amp, loop=loop, eta=eta)
 
 
 def model(amp, d_per_n=1e-5, phi=PHI, n=12):

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from cad.errors import ParameterError
+from fe.kinds import hinge_kind
 from studies.cli import main
 
 MODEL_MESH = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2),)}
@@ -19,13 +20,12 @@ DATA_MESH = {"size_mm": 3.5, "contact_size_mm": 0.7, "part_sizes_mm": (("ring", 
 def _spec(mesh: dict, increments: int):  # type: ignore[no-untyped-def]
     from cad.bearing import BearingHingeParams, Interfaces
     from fe.hinge.protocol import CycleSettings
-    from mesh.settings import MeshSettings
     from model.spec import ModelSpec
 
     return ModelSpec(
         "bearing",
         BearingHingeParams(interfaces=Interfaces.CONTACT),
-        MeshSettings.for_hinge("bearing", balls=False, **mesh),
+        hinge_kind("bearing").mesh_settings(**mesh),
         CycleSettings(mu=0.2, increments_per_stage=increments),
     )
 
@@ -42,10 +42,10 @@ def test_bearing_cases_are_checked_against_the_model_kind(tmp_path):
 
     spec = _spec(MODEL_MESH, 8)
     with pytest.raises(DataError, match="hinge 'general', but the model is the bearing hinge"):
-        _check_cases(spec, [Case("a", "general", 0.0, 0.0, 300.0)])
-    with pytest.raises(DataError, match=r"clearance_mm = 0\.1, but the bearing hinge has no"):
-        _check_cases(spec, [Case("b", "bearing", 0.1, 100.0, 300.0)])
-    _check_cases(spec, [Case("c", "bearing", 0.0, 100.0, 300.0)])  # accepted
+        _check_cases(spec, [Case("a", "general", {"clearance_mm": 0.0}, 300.0)])
+    with pytest.raises(DataError, match=r"clearance_mm is not a design variable of the bearing"):
+        _check_cases(spec, [Case("b", "bearing", {"clearance_mm": 0.1, "preload_n": 100.0}, 300.0)])
+    _check_cases(spec, [Case("c", "bearing", {"preload_n": 100.0}, 300.0)])  # accepted
 
 
 @pytest.mark.slow
@@ -62,7 +62,7 @@ def test_compare_passes_a_bearing_loop_from_another_mesh_and_fails_a_wrong_one(t
     rows = []
     # the soft case is another design point (a replicate would only widen the scatter)
     for cid, amp, scale in (("fp100_F300", 300.0, 1.0), ("fp100_F200_soft", 200.0, 1.3)):
-        r = service.run_point(data_spec, DesignPoint(amp, preload_n=100.0))
+        r = service.run_point(data_spec, DesignPoint(amp, {"preload_n": 100.0}))
         F, d = r.machine_path()
         s = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(F)))])
         t = np.linspace(0.0, s[-1], 900)  # another sampling than the model's increments
@@ -79,7 +79,7 @@ def test_compare_passes_a_bearing_loop_from_another_mesh_and_fails_a_wrong_one(t
     cases = {c["case_id"]: c for c in report["cases"]}
     assert cases["fp100_F300"]["passed"]
     assert not cases["fp100_F200_soft"]["passed"]
-    assert (tmp_path / "out" / "model_loops" / "preload_100N_F300N.csv").is_file()
+    assert (tmp_path / "out" / "model_loops" / "p100_F300.csv").is_file()
 
 
 @pytest.mark.slow
@@ -96,7 +96,7 @@ def test_calibrate_recovers_mu_of_the_fits_from_eta_only_bearing_data(tmp_path, 
     service = ModelService()
     rows = ["preload_N,amplitude_N,eta"]  # no clearance column: read as bearing-hinge data
     for fp, fg in ((100.0, 100.0), (100.0, 300.0)):
-        eta = service.run_point(truth, DesignPoint(fg, preload_n=fp)).metrics()["eta"]
+        eta = service.run_point(truth, DesignPoint(fg, {"preload_n": fp})).metrics()["eta"]
         rows.append(f"{fp:g},{fg:g},{eta:.6g}")
     (tmp_path / "eta.csv").write_text("\n".join(rows) + "\n")
     start = _spec(MODEL_MESH, 8)
@@ -134,7 +134,7 @@ def test_diagnose_names_a_frame_compliance_hidden_in_bearing_loops(tmp_path):
     rng = np.random.default_rng(4)
     rows = []
     for fp, fg in ((0.0, 200.0), (100.0, 400.0), (200.0, 300.0)):
-        r = service.run_point(data_spec, DesignPoint(fg, preload_n=fp))
+        r = service.run_point(data_spec, DesignPoint(fg, {"preload_n": fp}))
         F, d = r.machine_path()
         d = d + 2e-5 * F  # the frame, added here: not one of synth's own effects
         s = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(F)))])
@@ -160,7 +160,7 @@ def test_diagnose_names_a_frame_compliance_hidden_in_bearing_loops(tmp_path):
     assert d.verdict == "effect_missing", d.text()
     assert d.effects == ("frame_compliance",)
     assert d.candidates[0].value == pytest.approx(2e-5, rel=0.2)
-    assert "pin contacts" in d.skipped["face_friction"]
+    assert "do not act on the bearing hinge" in d.skipped["face_friction"]
     assert d.skipped["interface_friction"] == "not among the candidates asked for"
     with pytest.raises(ParameterError, match=r"unknown effect\(s\) \['frame'\]"):
         diagnose(

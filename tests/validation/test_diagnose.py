@@ -193,6 +193,7 @@ def test_eta_judged_without_free_play_is_the_cycles_reported_eta(spec, tmp_path)
     # (its loop without the free play); a different δ or a 4Δr slip would bias every
     # η-only diagnosis with clearance.
     from fe.effects import run_cycle_with_effects
+    from model.spec import DesignPoint
     from validation.diagnose import _eta_without_free_play, measured_features
     from validation.evaluate import ModelEvaluator
     from validation.features import FeatureSettings, derived
@@ -202,7 +203,9 @@ def test_eta_judged_without_free_play_is_the_cycles_reported_eta(spec, tmp_path)
     evaluator = ModelEvaluator(spec, [point])
     features = evaluator.features({})
     judged = float(_eta_without_free_play(features, meas)[0])
-    system = evaluator.service.prepare(spec, point[0]).system
+    system = evaluator.service.prepare(
+        spec, DesignPoint(point[1], {"clearance_mm": point[0]})
+    ).system
     settings = dataclasses.replace(evaluator.cycle, amplitude_n=point[1])
     reported = run_cycle_with_effects(system, point[0], settings, {}).metrics()["eta"]
     # same loop, same δ; they differ only by how the loop is closed (chord vs last state)

@@ -154,7 +154,7 @@ def test_measurement_set_with_plain_and_bluehill_loops(tmp_path):
     ms = read_measurement_set(folder)
     assert [c.case_id for c in ms.cases] == ["c1", "c2", "bh"]
     assert ms.cases[2].loop.force_n.max() > 290
-    assert ms.replicate_groups()[("general", 0.0, 0.0, 200.0)] == ("c1", "c2")
+    assert ms.replicate_groups()[("general", (("clearance_mm", 0.0),), 200.0)] == ("c1", "c2")
     assert ms.cases[0].replicate is None
 
 
@@ -189,7 +189,7 @@ def test_optional_columns_read(tmp_path):
             r"row 1 \(line 2\), column clearance_mm: not a number: 'zero'",
         ),
         (["c1,general,0,0,nan,c1.csv"], r"column amplitude_N: not a finite number"),
-        (["c1,hinged,0,0,200,c1.csv"], r"column hinge: hinge must be one of"),
+        (["c1,hinged,0,0,200,c1.csv"], r"column hinge: hinge kind must be one of"),
         (
             ["c1,general,0,0,200,half.csv"],
             r"half\.csv .*expected the load sequence .* found −, \+, −",
@@ -214,8 +214,16 @@ def test_measurement_set_refusals(tmp_path, rows, match):
 
 
 def test_cases_csv_missing_and_unknown_columns(tmp_path):
-    (tmp_path / "cases.csv").write_text("case_id,hinge,clearance_mm,amplitude_N,loop_file\n")
-    with pytest.raises(DataError, match=r"missing column\(s\) \['preload_N'\]"):
+    (tmp_path / "cases.csv").write_text("case_id,hinge,amplitude_N,loop_file\n")
+    with pytest.raises(DataError, match=r"missing column\(s\) \['case_id'\]|no cases"):
+        read_measurement_set(tmp_path)
+    # a general-hinge row needs its design column; another kind's (preload_N) it does not
+    (tmp_path / "cases.csv").write_text(
+        "case_id,hinge,amplitude_N,loop_file\nc1,general,200,c1.csv\n"
+    )
+    with pytest.raises(
+        DataError, match="missing column 'clearance_mm', a design variable of the general"
+    ):
         read_measurement_set(tmp_path)
     (tmp_path / "cases.csv").write_text(HEADER + ",humidity\n")
     with pytest.raises(DataError, match=r"unknown column\(s\) \['humidity'\]"):
@@ -235,8 +243,8 @@ def test_eta_table_like_the_paper(tmp_path):
     ms = read_measurement_set(tmp_path)
     assert [c.case_id for c in ms.cases] == ["row1", "row2", "row3"]
     assert ms.cases[1].eta == pytest.approx(0.109)
-    assert ms.cases[2].clearance_mm == pytest.approx(0.1)
-    assert all(c.loop is None and c.preload_n == 0.0 for c in ms.cases)
+    assert ms.cases[2].values == {"clearance_mm": pytest.approx(0.1)}
+    assert all(c.loop is None and c.hinge == "general" for c in ms.cases)
     assert read_eta_table(path).cases[0].amplitude_n == 100.0
 
 
@@ -244,7 +252,7 @@ def test_eta_table_like_the_paper(tmp_path):
     ("text", "match"),
     [
         ("clearance_mm,amplitude_N\n0,100\n", r"missing column\(s\) \['eta'\]"),
-        ("amplitude_N,eta\n100,0.1\n", r"clearance_mm or preload_N"),
+        ("amplitude_N,eta\n100,0.1\n", r"missing column\(s\) \['clearance_mm'\]"),
         (
             "clearance_mm,amplitude_N,eta\n0,100,1.5\n",
             r"row 1 \(line 2\), column eta: η must be in \(0, 1\]",

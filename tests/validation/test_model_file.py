@@ -11,7 +11,7 @@ from cad.materials import Material
 from fe.hinge.cycle import CycleSettings
 from mesh.settings import MeshSettings
 from model.file import read_model, write_model
-from model.spec import ModelSpec, with_clearance
+from model.spec import DesignPoint, ModelSpec, hinge_at
 
 REGISTRY = {
     "interference": {"delta_mm": (0.0, 0.05)},
@@ -213,12 +213,15 @@ def test_missing_file_and_minimal_file(tmp_path):
     assert spec == ModelSpec("general", GeneralHingeParams())
 
 
-def test_with_clearance_and_spec_checks():
+def test_hinge_at_a_design_point_and_spec_checks():
     spec = general_spec()
-    assert with_clearance(spec, 0.1).clearance_mm == 0.1
-    assert with_clearance(spec, 0.1).lug_material.name == "7075-T6"
-    with pytest.raises(ParameterError, match="clearance_mm must be in"):
-        with_clearance(spec, 9.0)
+    at = hinge_at(spec, DesignPoint(300.0, {"clearance_mm": 0.1}))
+    assert at.clearance_mm == 0.1
+    assert at.lug_material.name == "7075-T6"  # the rest of the model is kept
+    with pytest.raises(ParameterError, match=r"clearance_mm must be in \[0, 10\], got 11"):
+        hinge_at(spec, DesignPoint(300.0, {"clearance_mm": 11.0}))
+    with pytest.raises(ParameterError, match="hinge kind must be one of"):
+        ModelSpec("telescope", GeneralHingeParams())
     with pytest.raises(ParameterError, match="needs BearingHingeParams"):
         ModelSpec("bearing", GeneralHingeParams())
     with pytest.raises(TypeError):

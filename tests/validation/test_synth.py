@@ -13,8 +13,8 @@ from mesh.settings import MeshSettings
 from validation.loops import process_loop
 from validation.measurements import Loop, check_amplitude
 from validation.synth import (
-    DEFAULT_DESIGN,
     SynthSettings,
+    default_design,
     design_cases,
     finer_mesh,
     machine_path,
@@ -33,9 +33,9 @@ def _ellipse_path(amp=300.0, d_amp=2e-3, n=80):
 
 
 def test_default_design_is_three_by_three():
-    cases = design_cases(DEFAULT_DESIGN)
+    cases = design_cases(default_design("general"))
     assert len(cases) == 9
-    assert len({c.clearance_mm for c in cases}) == 3
+    assert {c.values for c in cases} == {(("clearance_mm", x),) for x in (0.0, 0.1, 0.2)}
     assert len({c.amplitude_n for c in cases}) == 3
     assert len({c.case_id for c in cases}) == 9
 

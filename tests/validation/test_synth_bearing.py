@@ -7,12 +7,8 @@ import json
 import pytest
 
 from cad.errors import ParameterError
-from validation.synth import (
-    DEFAULT_BEARING_DESIGN,
-    SynthSettings,
-    design_cases,
-    parse_design,
-)
+from fe.kinds import hinge_kind
+from validation.synth import SynthSettings, default_design, design_cases, parse_design
 
 COARSE = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2),)}
 
@@ -20,33 +16,31 @@ COARSE = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2
 def _bonded(increments=8):  # type: ignore[no-untyped-def]
     from cad.bearing import BearingHingeParams
     from fe.hinge.protocol import CycleSettings
-    from mesh.settings import MeshSettings
     from model.spec import ModelSpec
 
     return ModelSpec(
         "bearing",
         BearingHingeParams(),
-        MeshSettings.for_hinge("bearing", balls=False, **COARSE),
+        hinge_kind("bearing").mesh_settings(**COARSE),
         CycleSettings(mu=0.2, increments_per_stage=increments),
     )
 
 
 def test_bearing_design_is_preload_by_amplitude():
-    cases = design_cases(DEFAULT_BEARING_DESIGN, "bearing")
+    cases = design_cases(default_design("bearing"), "bearing")
     assert len(cases) == 9
-    assert {c.preload_n for c in cases} == {0.0, 100.0, 200.0}
-    assert {c.clearance_mm for c in cases} == {0.0}
+    assert {c.values for c in cases} == {(("preload_n", x),) for x in (0.0, 100.0, 200.0)}
     assert cases[3].case_id == "fp100N_F100N"
     assert cases[3].design_value == 100.0
-    assert design_cases(parse_design("0.1:100"))[0].preload_n is None  # general: no preload
+    assert design_cases(parse_design("0.1:100"))[0].values == (("clearance_mm", 0.1),)
     with pytest.raises(ParameterError, match=r"preload_n must be in \[0, 500\], got 600"):
         design_cases(parse_design("600:100", "preload_n"), "bearing")
     with pytest.raises(ParameterError, match=r"'100-200' is not preload_n:amplitude_N"):
         parse_design("100-200", "preload_n")
     with pytest.raises(ParameterError, match="F_p = 100 N, Fg = 200 N is repeated"):
         design_cases(parse_design("100:200,200"), "bearing")
-    with pytest.raises(ParameterError, match="kind must be one of"):
-        design_cases(DEFAULT_BEARING_DESIGN, "hinge")
+    with pytest.raises(ParameterError, match="hinge kind must be one of"):
+        design_cases(default_design("bearing"), "hinge")
 
 
 def test_cases_must_match_the_model_kind(tmp_path):

@@ -24,8 +24,8 @@ from fe.bearing.rings import pair_from_params, solve_ring
 from fe.bearing.system import BearingSystem, build_bearing_system
 from fe.hinge.protocol import CycleSettings
 from fe.hinge.result import CycleResult
+from fe.kinds import hinge_kind
 from mesh.build import mesh_hinge
-from mesh.settings import MeshSettings
 
 COARSE = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2),)}
 """A 40k-node structure built in ~7 s (the default mesh: 62k nodes, ~12 s)."""
@@ -36,7 +36,7 @@ def system() -> BearingSystem:
     p = BearingHingeParams()
     mesh, _ = mesh_hinge(
         without_balls(make_bearing_hinge(p)),
-        MeshSettings.for_hinge("bearing", balls=False, **COARSE),
+        hinge_kind("bearing").mesh_settings(**COARSE),
     )
     return build_bearing_system(mesh, p)
 

@@ -17,8 +17,8 @@ from fe.bearing.fits import GRIP, FitSystem, build_fit_system, with_frictional_f
 from fe.bearing.report import fit_fields
 from fe.hinge.protocol import CycleSettings
 from fe.hinge.result import CycleResult
+from fe.kinds import hinge_kind
 from mesh.build import mesh_hinge
-from mesh.settings import MeshSettings
 
 pytest.importorskip("gmsh")
 COARSE = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2),)}
@@ -30,7 +30,7 @@ pytestmark = pytest.mark.slow  # a coarse build (~35 s) and a short cycle
 def cycle() -> tuple[FitSystem, CycleResult]:
     p = BearingHingeParams()
     model = with_frictional_fits(without_balls(make_bearing_hinge(p)))
-    mesh, _ = mesh_hinge(model, MeshSettings.for_hinge("bearing", balls=False, **COARSE))
+    mesh, _ = mesh_hinge(model, hinge_kind("bearing").mesh_settings(**COARSE))
     system = build_fit_system(mesh, p)
     settings = CycleSettings(amplitude_n=400.0, increments_per_stage=4, mu=0.2)
     return system, run_fit_cycle(system, settings, 100.0)[0]

@@ -11,8 +11,8 @@ from cad.bearing import BearingHingeParams, make_bearing_hinge, without_balls
 from fe.bearing.fit_cycle import run_fit_cycle
 from fe.bearing.fits import FitSystem, build_fit_system, with_frictional_fits
 from fe.hinge.protocol import CycleSettings
+from fe.kinds import hinge_kind
 from mesh.build import mesh_hinge
-from mesh.settings import MeshSettings
 
 COARSE = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2),)}
 
@@ -21,7 +21,7 @@ COARSE = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2
 def fits() -> FitSystem:
     p = BearingHingeParams()
     model = with_frictional_fits(without_balls(make_bearing_hinge(p)))
-    mesh, _ = mesh_hinge(model, MeshSettings.for_hinge("bearing", balls=False, **COARSE))
+    mesh, _ = mesh_hinge(model, hinge_kind("bearing").mesh_settings(**COARSE))
     return build_fit_system(mesh, p)
 
 

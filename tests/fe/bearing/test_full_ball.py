@@ -23,6 +23,7 @@ from fe.bearing.cycle import ball_law
 from fe.bearing.meshed_ball import MeshedBallLaw, rig_maps
 from fe.bearing.one_ball import MESH_LEVELS
 from fe.bearing.system import BallLines, ball_lines
+from fe.kinds import hinge_kind
 
 LEVEL0_FORCE_RTOL = 0.04
 """Meshed ball at μ = 0 against Hertz at ``MESH_LEVELS[0]``: the one-ball rig's total
@@ -195,12 +196,11 @@ def test_the_rig_is_cached_by_grid_and_bearing(tmp_path, params, rig, monkeypatc
 
 def test_full_balls_with_frictional_fits_are_refused_by_name():
     from fe.hinge.protocol import CycleSettings
-    from mesh.settings import MeshSettings
     from model.service import ModelService
     from model.spec import DesignPoint, ModelSpec
 
     hinge = BearingHingeParams(ball_model=BallModel.FULL, interfaces=Interfaces.CONTACT)
-    spec = ModelSpec("bearing", hinge, MeshSettings.for_hinge("bearing", balls=False),
+    spec = ModelSpec("bearing", hinge, hinge_kind("bearing").mesh_settings(),
                      CycleSettings())  # fmt: skip
     with pytest.raises(ParameterError, match=r"ball_model = 'full'.*interfaces = 'contact'"):
         ModelService().run(spec, [DesignPoint(200.0)], keep_going=False)
@@ -229,13 +229,11 @@ def structure():
     from cad.bearing import make_bearing_hinge, without_balls
     from fe.bearing.system import build_bearing_system
     from mesh.build import mesh_hinge
-    from mesh.settings import MeshSettings
 
     p = BearingHingeParams()
     mesh, _ = mesh_hinge(
         without_balls(make_bearing_hinge(p)),
-        MeshSettings.for_hinge(
-            "bearing", balls=False, size_mm=4.0, contact_size_mm=0.8,
+        hinge_kind("bearing").mesh_settings(size_mm=4.0, contact_size_mm=0.8,
             part_sizes_mm=(("ring", 1.2),),
         ),
     )  # fmt: skip

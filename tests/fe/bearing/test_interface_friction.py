@@ -13,7 +13,7 @@ from cad.errors import ParameterError
 from cad.general import GeneralHingeParams
 from fe.effects import REGISTRY, InterfaceFriction
 from fe.hinge.protocol import CycleSettings
-from mesh.settings import MeshSettings
+from fe.kinds import hinge_kind
 from model.service import ModelService, check_spec
 from model.spec import DesignPoint, ModelSpec, geometry_key, resolve_structural, result_key
 
@@ -21,7 +21,7 @@ COARSE = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2
 
 
 def _bonded(**effects):  # type: ignore[no-untyped-def]
-    mesh = MeshSettings.for_hinge("bearing", balls=False, **COARSE)
+    mesh = hinge_kind("bearing").mesh_settings(**COARSE)
     cycle = CycleSettings(mu=0.2, increments_per_stage=10)
     return ModelSpec("bearing", BearingHingeParams(), mesh, cycle, effects=effects)
 
@@ -47,10 +47,10 @@ def test_it_is_keyed_and_run_as_the_contact_model_it_makes():
     assert resolved.hinge.interfaces is Interfaces.CONTACT
     assert resolved.cycle.mu == 0.35
     assert not resolved.effects
-    point = DesignPoint(300.0, preload_n=100.0)
+    point = DesignPoint(300.0, {"preload_n": 100.0})
     assert result_key(spec, point) == result_key(contact, point)
-    assert geometry_key(spec, 0.0) == geometry_key(contact, 0.0)
-    assert geometry_key(spec, 0.0) != geometry_key(_bonded(), 0.0)
+    assert geometry_key(spec, point) == geometry_key(contact, point)
+    assert geometry_key(spec, point) != geometry_key(_bonded(), point)
     # μ_interface = 0 switches it off: the bonded model, another key than any contact model
     off = _bonded(interface_friction={"mu_interface": 0.0})
     assert result_key(off, point) == result_key(_bonded(), point)
@@ -61,7 +61,9 @@ def test_it_is_refused_where_it_means_nothing():
     general = ModelSpec(
         "general", GeneralHingeParams(), effects={"interface_friction": {"mu_interface": 0.2}}
     )
-    with pytest.raises(ParameterError, match=r"\['interface_friction'\] act on the bearing"):
+    with pytest.raises(
+        ParameterError, match=r"\['interface_friction'\] do not act on the general hinge"
+    ):
         check_spec(general)
     contact = dataclasses.replace(
         _bonded(interface_friction={"mu_interface": 0.2}),
@@ -69,7 +71,9 @@ def test_it_is_refused_where_it_means_nothing():
     )
     with pytest.raises(ParameterError, match=r"interfaces = 'contact' already"):
         check_spec(contact)
-    with pytest.raises(ParameterError, match=r"\['face_friction'\] act on the general hinge"):
+    with pytest.raises(
+        ParameterError, match=r"\['face_friction'\] do not act on the bearing hinge"
+    ):
         check_spec(_bonded(face_friction={"clamp_force_n": 100.0}))
     check_spec(_bonded(interface_friction={"mu_interface": 0.2}))  # accepted
 
@@ -101,7 +105,7 @@ def test_docstring_fingerprint_is_measured():
     service = ModelService()
     base, eff = _bonded(), _bonded(interface_friction={"mu_interface": 0.2})
     for (fp, fg), row in documented.items():
-        point = DesignPoint(fg, preload_n=fp)
+        point = DesignPoint(fg, {"preload_n": fp})
         b, e = service.run_point(base, point).metrics(), service.run_point(eff, point).metrics()
         got = (b["eta"], e["eta"], b["disp_at_peak_mm"] * 1e3, e["disp_at_peak_mm"] * 1e3)
         np.testing.assert_allclose(got, row, rtol=0.02, atol=1.5e-5, err_msg=str((fp, fg)))
