@@ -46,9 +46,7 @@ def params_with(
         what = options.get(name, name)
         if name not in types:
             owners = [
-                hinge_kind(k).title
-                for k in kind_names()
-                if name in field_types(hinge_kind(k))
+                hinge_kind(k).title for k in kind_names() if name in field_types(hinge_kind(k))
             ]
             where = f"; it is a parameter of the {' and the '.join(owners)}" if owners else ""
             raise ParameterError(
