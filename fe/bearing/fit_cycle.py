@@ -29,8 +29,10 @@ import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
 from cad.errors import ConvergenceError, ParameterError
-from fe.bearing.cycle import REG_FRACTION, ball_law, block_diag, with_zero_crossing
+from fe.bearing.balls import REG_FRACTION, ball_law, block_diag
 from fe.bearing.fits import GRIP, N_RIGID, FitSystem
+from fe.bearing.loading import with_zero_crossing
+from fe.bearing.pair import axial_state_from_load, bearing_from_params
 from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
 from fe.contact.state import LinearSolver
 from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
@@ -251,8 +253,6 @@ def fit_preload(
         return float(f[b1, 1].sum())
 
     # rigid-ring guess: both bearings compress by δ_a, σ ≈ 2 δ_a
-    from fe.bearing.pair import axial_state_from_load, bearing_from_params
-
     jones = axial_state_from_load(bearing_from_params(system.params), preload_n)
     sig = [2.0 * jones.axial_deflection_mm]
     sig.append(1.2 * sig[0])

@@ -40,17 +40,19 @@ from threadpoolctl import threadpool_limits
 
 from cad.errors import ConvergenceError, ParameterError
 from fe.bearing.ball_rig import load_or_build_rig
-from fe.bearing.cycle import (
+from fe.bearing.balls import (
     GRIP_X,
     GRIP_Z,
     PRELOAD,
     BallState,
-    BearingCycle,
-    PreloadResult,
     ball_law,
-    bearing_result,
     newton_scales,
     newton_step,
+)
+from fe.bearing.loading import (
+    BearingCycle,
+    PreloadResult,
+    bearing_result,
     preload_step,
     with_zero_crossing,
 )
