@@ -5,8 +5,9 @@ the cycle solves the ``hertz`` balls' equations of ``fe.bearing.balls`` (Newton 
 balls' relative displacements ``v`` and the grip displacement δ_x, σ and δ_z held). The
 energy is convex, the structure linear: the solution is unique, and it is elastic — with
 bonded interfaces and free-rolling balls nothing dissipates, so the loop has no area
-(``docs/bearing_model.md``). ``run_bearing_cycle`` runs the meshed-ball cycle
-(``fe.bearing.full_cycle``) instead when the system asks for ``full`` balls.
+(``docs/bearing_model.md``). ``run_bearing_cycle`` drives ``HertzStep`` through
+``fe.cycle.driver.drive``, or runs the meshed-ball cycle (``fe.bearing.full_cycle``) when
+the system asks for ``full`` balls.
 
 The ball law and the preload step are re-exported here (``ball_law``, ``solve_state``,
 ``preload_step``, …) for the callers that import them from this module.
@@ -18,6 +19,7 @@ __all__ = [
     "GRIP_X",
     "BallState",
     "BearingCycle",
+    "HertzStep",
     "PreloadResult",
     "ball_law",
     "ball_state_of",
@@ -30,7 +32,7 @@ __all__ = [
 
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import numpy.typing as npt
@@ -56,6 +58,7 @@ from fe.bearing.loading import (
 )
 from fe.bearing.system import BearingSystem
 from fe.contact import ContactState
+from fe.cycle.driver import Recorded, Target, drive
 from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
 from fe.hinge.result import CycleResult, Increment
 
@@ -85,55 +88,68 @@ def run_bearing_cycle(
     t0 = time.perf_counter()
     pre = preload_step(system, preload_n, settings)
     t_pre = time.perf_counter() - t0
-    incs: list[Increment] = []
-    states: list[ContactState] = []
-    total = sum(n for _, _, n in settings.stages())
-    state = pre.balls
+    step = HertzStep(system, settings, preload_n, pre)
+    return BearingCycle(drive(step, settings, progress, timings_s={"preload": t_pre}), pre)
 
-    def partial() -> CycleResult:
-        return bearing_result(
-            settings, incs, states, pre.balls.as_contact_state(), {"preload": t_pre}
+
+class HertzStep:
+    """The bearing hinge's increment with ``hertz`` balls, for ``fe.cycle.driver.drive``.
+
+    Each target is one state of the balls at the clevis force (σ and δ_z held), reached
+    from the last by Newton (``_advance``). The targets get F = 0 added where a stage
+    crosses it (``with_zero_crossing``), and each increment carries the grip's tangent
+    stiffness, so the elastic loop is integrated with the Hermite rule.
+    """
+
+    def __init__(
+        self,
+        system: BearingSystem,
+        settings: CycleSettings,
+        preload_n: float,
+        preload: PreloadResult,
+    ) -> None:
+        """Start from the preloaded state ``preload`` (plate force ``preload_n`` [N])."""
+        self.system = system
+        self.settings = settings
+        self.preload_n = preload_n
+        self.preload = preload
+        self.state = preload.balls
+
+    def targets(self, f_from: float, f_to: float, n: int) -> FloatArray:
+        """The graded targets of the stage, F = 0 added where it is crossed, shape (k,) [N]."""
+        targets = stage_targets(f_from, f_to, n, self.settings.grading)
+        return with_zero_crossing(targets, f_from, self.preload_n)
+
+    def advance(self, target: Target, partial: Callable[[], CycleResult]) -> Iterator[Recorded]:
+        """Reach ``target.f_to``: one increment."""
+        s = _advance(self.system, self.state, target.f_from, target.f_to, self.settings,
+                     self.preload_n, target.index, partial)  # fmt: skip
+        self.state = s
+        inc = Increment(
+            stage=target.stage,
+            force_n=target.f_to,
+            disp_mm=float(s.alpha[GRIP_X]),
+            side=1,
+            iterations=s.iterations,
+            n_open=int(np.sum(s.load_n <= 0)),
+            n_stick=int(np.sum(s.load_n > 0)),
+            n_slip=0,
+            friction_work=0.0,
+            normal_work=0.0,
+            elastic_energy=elastic_energy(self.system, s),
+            stiffness_n_per_mm=grip_stiffness(self.system, s),
         )
+        yield inc, s.as_contact_state()
 
-    t1 = time.perf_counter()
-    f_prev = 0.0
-    for stage, (f_from, f_to, n) in enumerate(settings.stages()):
-        for target in with_zero_crossing(
-            stage_targets(f_from, f_to, n, settings.grading), f_from, preload_n
-        ):
-            state = _advance(system, state, f_prev, float(target), settings, preload_n, len(incs),
-                             partial)  # fmt: skip
-            f_prev = float(target)
-            e_new = elastic_energy(system, state)
-            incs.append(
-                Increment(
-                    stage=stage,
-                    force_n=f_prev,
-                    disp_mm=float(state.alpha[GRIP_X]),
-                    side=1,
-                    iterations=state.iterations,
-                    n_open=int(np.sum(state.load_n <= 0)),
-                    n_stick=int(np.sum(state.load_n > 0)),
-                    n_slip=0,
-                    friction_work=0.0,
-                    normal_work=0.0,
-                    elastic_energy=e_new,
-                    stiffness_n_per_mm=grip_stiffness(system, state),
-                )
-            )
-            states.append(state.as_contact_state())
-            if progress is not None:
-                progress(len(incs), total)
-    return BearingCycle(
-        bearing_result(
-            settings,
-            incs,
-            states,
-            pre.balls.as_contact_state(),
-            {"preload": t_pre, "cycle": time.perf_counter() - t1},
-        ),
-        pre,
-    )
+    def result(
+        self,
+        increments: tuple[Increment, ...],
+        states: tuple[ContactState, ...],
+        timings_s: dict[str, float],
+    ) -> CycleResult:
+        """The cycle of these increments, with the preloaded state."""
+        preload = self.preload.balls.as_contact_state()
+        return bearing_result(self.settings, increments, states, preload, timings_s)
 
 
 def _advance(
