@@ -3,7 +3,7 @@
 Each increment (force F on the clevis, preload shift σ held) is a Newton iteration on the
 ball coordinates ``v`` around one frictional contact solve per iteration::
 
-    H = ∂f/∂v at v_k (regularised below a small approach, as fe.bearing.cycle),
+    H = ∂f/∂v at v_k (regularised below a small approach, as fe.bearing.balls),
     ΔH = H − H_ref,  M = I + W_b ΔH,  N = ΔH M⁻¹,  c = f(v_k) − H_ref v_k − ΔH v_k
     W_eff = W_c − X N Xᵀ,   w_free = w0 − X (c − N W_b c)
     (p, α) = solve_increment(W_eff, w_free, state_prev, G, e = (0, …, 0, −F))

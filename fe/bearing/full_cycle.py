@@ -12,7 +12,7 @@ solves, by Newton with the same backtracking line search as the ``hertz`` cycle:
 
 where ``f_j(v_j)`` is ball j's frictional contact step from its committed state and
 ``∂f_j/∂v_j`` its exact tangent for the converged active set (balls below the regularised
-Hertz tangent of :mod:`fe.bearing.cycle` get that one, so Newton sees a ball it is about
+Hertz tangent of :mod:`fe.bearing.balls` get that one, so Newton sees a ball it is about
 to load). The local solves
 warm-start from the last iterate; a ball with a gap everywhere costs no solve.
 
