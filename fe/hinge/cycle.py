@@ -47,7 +47,7 @@ from fe.hinge.freeplay import SlidingStep
 from fe.hinge.geometry import contact_geometry, split_window
 from fe.hinge.increments import (
     Branch,
-    advance,
+    advance_force,
     check_window,
     increment_displacements,
     record_increment,
@@ -146,7 +146,7 @@ class HingeStep:
     """The general hinge's increment for ``fe.cycle.driver.drive``: force control, F = 0 crossed.
 
     Each target is one force-controlled increment in the current touching configuration
-    (``fe.hinge.increments.advance``), started on the branch's extrapolation. With
+    (``fe.hinge.increments.advance_force``), started on the branch's extrapolation. With
     clearance the unloaded start is the tension configuration seeded toward the first
     force (``seed_state``); where the force changes sign the pin changes sides: the
     increment to F = 0 is recorded, and the other configuration is seeded toward the
@@ -186,14 +186,14 @@ class HingeStep:
             self.previous = None  # no extrapolation across a reversal
         f_from, index = target.f_from, target.index
         if self.clearance_mm > 0 and f_from * target.f_to < 0:  # the pin changes sides
-            new, res = advance(cond, self.state, f_from, 0.0, self.contact, self.settings,
+            new, res = advance_force(cond, self.state, f_from, 0.0, self.contact, self.settings,
                                index, partial, self.previous)  # fmt: skip
             yield record_increment(target.stage, 0.0, self.side, res, cond), new
             self.side = -self.side
             cond = self.configs[self.side]
             self.state = seed_state(cond, target.f_to)
             f_from, index, self.previous = 0.0, index + 1, None
-        new, res = advance(cond, self.state, f_from, target.f_to, self.contact, self.settings,
+        new, res = advance_force(cond, self.state, f_from, target.f_to, self.contact, self.settings,
                            index, partial, self.previous)  # fmt: skip
         self.previous, self.state = (f_from, self.state), new
         yield record_increment(target.stage, target.f_to, self.side, res, cond), new

@@ -16,9 +16,10 @@ the pin at ``±Δr``):
 * **start**: the pin centred in its holes, the clevis centred (``δ = −2Δr`` in the
   tension configuration's coordinates), nothing touching; the clamp is applied with the
   first load increment, as at Δr = 0.
-* **force control** (as ``fe.hinge.increments.advance``) in the current configuration while the
-  target is within what the faces hold, or on the side where the pin is engaged; the pin
-  may open and float (``p = 0`` on all its points), the faces then carry the load alone.
+* **force control** (as ``fe.hinge.increments.advance_force``) in the current
+  configuration while the target is within what the faces hold, or on the side where the
+  pin is engaged; the pin may open and float (``p = 0`` on all its points), the faces then
+  carry the load alone.
   Until the first slide the faces alone are solved (``_held``) and the pin stays centred.
 * **approach**: when a target lies beyond ``F_slide`` on the side where the pin is not
   engaged, force control goes to ``(1 − APPROACH_MARGIN) F_slide``, then the grip is
@@ -239,7 +240,7 @@ def _forced(
     partial: Callable[[], CycleResult],
     previous: Branch | None,
 ) -> list[tuple[float, ContactState, IncrementResult]]:
-    """Force control from ``f_from`` to ``f_to`` (as ``fe.hinge.increments.advance``), every sub-step kept.
+    """Force control from ``f_from`` to ``f_to`` (as ``advance_force``), every sub-step kept.
 
     A cut-back's sub-steps are returned (and recorded) one by one, so the loop has their
     points and its trapezoidal area matches their works exactly.

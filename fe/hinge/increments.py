@@ -69,7 +69,7 @@ def solve_at_force(
     )
 
 
-def advance(
+def advance_force(
     cond: Condensed,
     state: ContactState,
     f_from: float,
