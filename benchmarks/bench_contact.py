@@ -113,7 +113,7 @@ def run_hinge(path: str, n_stage0: int, n_stage1: int, solver: LinearSolver):
     """Replay the first increments of stages 0 and 1 (all stages if n_stage0 < 0) on a saved W."""
     import types
 
-    from fe.hinge.cycle import _advance
+    from fe.hinge.increments import advance_force
     from fe.hinge.protocol import CycleSettings, stage_targets
 
     data = np.load(path)
@@ -129,7 +129,7 @@ def run_hinge(path: str, n_stage0: int, n_stage1: int, solver: LinearSolver):
     for stage, limit in zip(stages[: len(limits)], limits, strict=True):
         previous = None
         for target in stage_targets(*stage, cyc.grading)[:limit]:
-            new, res = _advance(
+            new, res = advance_force(
                 cond, state, f_prev, float(target), contact, cyc, n_inc, dict, previous
             )
             iters += res.iterations

@@ -38,6 +38,7 @@ def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict
     import fe.contact.krylov as krylov
     import fe.contact.working as working
     import fe.hinge.cycle as cycle
+    import fe.hinge.increments as increments
     from cad.general import GeneralHingeParams
     from fe.hinge.cycle import CycleSettings
     from mesh.settings import MeshSettings
@@ -85,7 +86,7 @@ def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict
     krylov.gather_block = gather_counted
     working.gather_block = gather_counted
     rows: list[dict[str, Any]] = []
-    solve = cycle.solve_increment
+    solve = increments.solve_increment
 
     def solve_counted(*args: Any, **kwargs: Any) -> Any:
         now.clear()
@@ -115,7 +116,7 @@ def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict
         )
         return res
 
-    cycle.solve_increment = solve_counted
+    increments.solve_increment = solve_counted
     spec = ModelSpec(
         "general",
         GeneralHingeParams(),

@@ -166,6 +166,7 @@ def variants(level: int) -> list[dict[str, Any]]:
     import fe.contact.globalise as globalise
     import fe.contact.krylov as krylov
     import fe.hinge.cycle as cycle
+    import fe.hinge.increments as increments
 
     spec, system, configs = _prepare(level)
     counts = {"lus": 0, "gmres": 0}
@@ -190,9 +191,9 @@ def variants(level: int) -> list[dict[str, Any]]:
             kr = dataclasses.replace(base.krylov, **change.get("krylov", {}))
             return dataclasses.replace(base, krylov=kr, **change.get("contact", {}))
 
-        solve = cycle.solve_increment
+        solve = increments.solve_increment
         if "start" in change:
-            solve = _start_wrapper(change["start"], cycle.solve_increment)
+            solve = _start_wrapper(change["start"], increments.solve_increment)
         search = globalise._line_search
         if "nonmonotone" in change:
             search = _nonmonotone(globalise._line_search, change["nonmonotone"])
@@ -201,7 +202,7 @@ def variants(level: int) -> list[dict[str, Any]]:
             _patched(dense.sla, "lu_factor", lu_counted),
             _patched(krylov, "gmres", gmres_counted),
             _patched(cycle, "hinge_contact", contact),
-            _patched(cycle, "solve_increment", solve),
+            _patched(increments, "solve_increment", solve),
             _patched(globalise, "_line_search", search),
         ):
             for cond in configs.values():  # no base LU carried over from the last run
@@ -231,11 +232,12 @@ def _capture(level: int) -> tuple[Any, Any, Any]:
     """W, the closed points' coordinates and the middle Newton system of ``CAPTURE``."""
     import fe.contact.krylov as krylov
     import fe.hinge.cycle as cycle
+    import fe.hinge.increments as increments
 
     spec, system, configs = _prepare(level)
     systems: list[Any] = []
     calls = [0]
-    linearise, solve = krylov.linearise, cycle.solve_increment
+    linearise, solve = krylov.linearise, increments.solve_increment
 
     class _Stop(Exception):
         pass
@@ -255,7 +257,7 @@ def _capture(level: int) -> tuple[Any, Any, Any]:
 
     with (
         _patched(krylov, "linearise", linearise_kept),
-        _patched(cycle, "solve_increment", solve_counted),
+        _patched(increments, "solve_increment", solve_counted),
         suppress(_Stop),
     ):
         cycle.run_cycle(system, 0.0, spec.cycle, configs=configs)

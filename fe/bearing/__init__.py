@@ -12,7 +12,9 @@ rest on; these closed forms import ``cad``, numpy and scipy, and nothing else fr
 * :mod:`fe.bearing.rings` — Jones' five-DOF equilibrium of the shared inner ring under
   radial, axial and moment load: per-ball loads Q_ψ and contact angles, stiffness matrix.
 
-The hinge's cycles build on them: :mod:`fe.bearing.cycle` (``hertz`` balls),
+The hinge's cycles build on them, each a step of :mod:`fe.cycle.driver`, with the ``hertz``
+ball law of :mod:`fe.bearing.balls` and the preload, targets and result of
+:mod:`fe.bearing.loading`: :mod:`fe.bearing.cycle` (``hertz`` balls),
 :mod:`fe.bearing.fit_cycle` (frictional fits) and :mod:`fe.bearing.full_cycle` (``full``
 balls: the meshed one-ball rig of :mod:`fe.bearing.ball_rig`, condensed once with friction,
 as the contact law of every ball, :mod:`fe.bearing.meshed_ball`).

@@ -3,7 +3,7 @@
 Each increment (force F on the clevis, preload shift σ held) is a Newton iteration on the
 ball coordinates ``v`` around one frictional contact solve per iteration::
 
-    H = ∂f/∂v at v_k (regularised below a small approach, as fe.bearing.cycle),
+    H = ∂f/∂v at v_k (regularised below a small approach, as fe.bearing.balls),
     ΔH = H − H_ref,  M = I + W_b ΔH,  N = ΔH M⁻¹,  c = f(v_k) − H_ref v_k − ΔH v_k
     W_eff = W_c − X N Xᵀ,   w_free = w0 − X (c − N W_b c)
     (p, α) = solve_increment(W_eff, w_free, state_prev, G, e = (0, …, 0, −F))
@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,10 +29,13 @@ import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
 from cad.errors import ConvergenceError, ParameterError
-from fe.bearing.cycle import REG_FRACTION, ball_law, block_diag, with_zero_crossing
+from fe.bearing.balls import REG_FRACTION, ball_law, block_diag
 from fe.bearing.fits import GRIP, N_RIGID, FitSystem
+from fe.bearing.loading import with_zero_crossing
+from fe.bearing.pair import axial_state_from_load, bearing_from_params
 from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
 from fe.contact.state import LinearSolver
+from fe.cycle.driver import Recorded, Target, drive
 from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
 from fe.hinge.result import CycleResult, Increment
 
@@ -251,8 +254,6 @@ def fit_preload(
         return float(f[b1, 1].sum())
 
     # rigid-ring guess: both bearings compress by δ_a, σ ≈ 2 δ_a
-    from fe.bearing.pair import axial_state_from_load, bearing_from_params
-
     jones = axial_state_from_load(bearing_from_params(system.params), preload_n)
     sig = [2.0 * jones.axial_deflection_mm]
     sig.append(1.2 * sig[0])
@@ -317,54 +318,92 @@ def run_fit_cycle(
     with threadpool_limits(limits=settings.blas_threads, user_api="blas"):
         pre, pre_work = fit_preload(system, preload_n, contact)  # frictionless assembly
         t_pre = time.perf_counter() - t0
-        incs: list[Increment] = []
-        states: list[ContactState] = []
-        balls = [np.append(pre.v_mm, pre.preload_mm)]  # after the preload, then per increment
-        total = sum(n for _, _, n in settings.stages())
-
-        def partial() -> CycleResult:
-            return CycleResult(settings, 0.0, tuple(incs), 0.0, tuple(states), {},
-                               {"preload": t_pre}, preload_state=pre.contact,
-                               ball_coordinates=np.array(balls))  # fmt: skip
-
-        state, f_prev = pre, 0.0
-        t1 = time.perf_counter()
-        for stage, (f_from, f_to, n) in enumerate(settings.stages()):
-            # no point at F = 0 itself, and only FIT_HALVINGS toward it: near zero force
-            # the pin is held by friction alone and the contact Newton stalls (it did at
-            # F = −0.019 N of a 100 N cycle with eight halvings)
-            targets = with_zero_crossing(
-                stage_targets(f_from, f_to, n, settings.grading), f_from, preload_n,
-                at_zero=False, halvings=FIT_HALVINGS,
-            )  # fmt: skip
-            before: tuple[float, FitState] | None = None  # no extrapolation across a reversal
-            for target in targets:
-                new = _advance(system, state, f_prev, float(target), contact, settings,
-                               preload_n, len(incs), partial, before)  # fmt: skip
-                before, state, f_prev = (f_prev, state), new, float(target)
-                res = state.result
-                incs.append(
-                    Increment(
-                        stage=stage,
-                        force_n=f_prev,
-                        disp_mm=float(state.contact.alpha[GRIP]),
-                        side=1,
-                        iterations=0 if res is None else res.iterations,
-                        n_open=0 if res is None else res.n_open,
-                        n_stick=0 if res is None else res.n_stick,
-                        n_slip=0 if res is None else res.n_slip,
-                        friction_work=0.0 if res is None else float(np.sum(res.friction_work)),
-                        normal_work=0.0 if res is None else float(np.sum(res.normal_work)),
-                        elastic_energy=fit_energy(system, state),
-                    )
-                )
-                states.append(state.contact)
-                balls.append(np.append(state.v_mm, state.preload_mm))
-                if progress is not None:
-                    progress(len(incs), total)
-    result = partial()
-    object.__setattr__(result, "timings_s", {"preload": t_pre, "cycle": time.perf_counter() - t1})
+        step = FitStep(system, settings, preload_n, contact, pre)
+        result = drive(step, settings, progress, timings_s={"preload": t_pre})
     return result, pre, pre_work
+
+
+class FitStep:
+    """The bearing hinge's increment with frictional fits, for ``fe.cycle.driver.drive``.
+
+    Each target is one increment of ``solve_fit_increment`` at the clevis force (σ held),
+    started on the branch's extrapolation and halved on failure (``_advance``). The balls'
+    coordinates after the preload and after every increment are kept in the result
+    (``CycleResult.ball_coordinates``).
+    """
+
+    def __init__(
+        self,
+        system: FitSystem,
+        settings: CycleSettings,
+        preload_n: float,
+        contact: ContactSettings,
+        preload: FitState,
+    ) -> None:
+        """Start from the preloaded state ``preload`` (plate force ``preload_n`` [N])."""
+        self.system = system
+        self.settings = settings
+        self.preload_n = preload_n
+        self.contact = contact
+        self.preload = preload
+        self.state = preload
+        self.before: tuple[float, FitState] | None = None
+        self.balls = [np.append(preload.v_mm, preload.preload_mm)]  # (2 n_b + 1,) each
+
+    def targets(self, f_from: float, f_to: float, n: int) -> FloatArray:
+        """The graded targets of the stage, refined toward F = 0 where it is crossed [N].
+
+        No point at F = 0 itself, and only ``FIT_HALVINGS`` toward it: near zero force the
+        pin is held by friction alone and the contact Newton stalls (it did at
+        F = −0.019 N of a 100 N cycle with eight halvings).
+        """
+        targets = stage_targets(f_from, f_to, n, self.settings.grading)
+        return with_zero_crossing(
+            targets, f_from, self.preload_n, at_zero=False, halvings=FIT_HALVINGS
+        )
+
+    def advance(self, target: Target, partial: Callable[[], CycleResult]) -> Iterator[Recorded]:
+        """Reach ``target.f_to``: one increment."""
+        if target.first:
+            self.before = None  # no extrapolation across a reversal
+        new = _advance(self.system, self.state, target.f_from, target.f_to, self.contact,
+                       self.settings, self.preload_n, target.index, partial, self.before)  # fmt: skip
+        self.before, self.state = (target.f_from, self.state), new
+        self.balls.append(np.append(new.v_mm, new.preload_mm))
+        res = new.result
+        inc = Increment(
+            stage=target.stage,
+            force_n=target.f_to,
+            disp_mm=float(new.contact.alpha[GRIP]),
+            side=1,
+            iterations=0 if res is None else res.iterations,
+            n_open=0 if res is None else res.n_open,
+            n_stick=0 if res is None else res.n_stick,
+            n_slip=0 if res is None else res.n_slip,
+            friction_work=0.0 if res is None else float(np.sum(res.friction_work)),
+            normal_work=0.0 if res is None else float(np.sum(res.normal_work)),
+            elastic_energy=fit_energy(self.system, new),
+        )
+        yield inc, new.contact
+
+    def result(
+        self,
+        increments: tuple[Increment, ...],
+        states: tuple[ContactState, ...],
+        timings_s: dict[str, float],
+    ) -> CycleResult:
+        """The cycle of these increments, with the preloaded state and the balls' coordinates."""
+        return CycleResult(
+            self.settings,
+            0.0,
+            increments,
+            0.0,
+            states,
+            {},
+            timings_s,
+            preload_state=self.preload.contact,
+            ball_coordinates=np.array(self.balls[: len(increments) + 1]),
+        )
 
 
 def _advance(

@@ -37,6 +37,7 @@ from cad.bearing_geometry import BearingHingeParams
 from cad.errors import MeshQualityError
 from cad.model import HingeModel, PairKind, SurfacePair
 from fe.assembly import Factorization, dofs_of
+from fe.bearing.balls import ball_law, block_diag
 from fe.bearing.system import BallCounts, BallLines, ball_lines, patch_rows
 from fe.bearing.ties import Ties, assemble_tied, unit_field
 from fe.element import ElementType
@@ -145,8 +146,6 @@ class FitSystem(BallCounts):
         Returns:
             Shape (2 n_b, k) [N]; ``f`` is the Hertz force on the inner rings (∂E/∂v).
         """
-        from fe.bearing.cycle import ball_law
-
         shifted = v + np.outer(self.preload_shift, sigma)
         f = np.column_stack(
             [
@@ -186,8 +185,6 @@ class FitSystem(BallCounts):
 
 def reference_stiffness(balls: BallLines, load_n: float = REF_BALL_LOAD_N) -> FloatArray:
     """A fixed positive ball stiffness (Hertz tangent at ``load_n`` along each line)."""
-    from fe.bearing.cycle import ball_law, block_diag
-
     e = balls.d0 / np.linalg.norm(balls.d0, axis=1)[:, None]
     approach = (load_n / balls.k_n) ** (2.0 / 3.0)
     _, _, _, H = ball_law(balls.d0, e * approach, balls.k_n)

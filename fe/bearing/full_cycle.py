@@ -12,7 +12,7 @@ solves, by Newton with the same backtracking line search as the ``hertz`` cycle:
 
 where ``f_j(v_j)`` is ball j's frictional contact step from its committed state and
 ``∂f_j/∂v_j`` its exact tangent for the converged active set (balls below the regularised
-Hertz tangent of :mod:`fe.bearing.cycle` get that one, so Newton sees a ball it is about
+Hertz tangent of :mod:`fe.bearing.balls` get that one, so Newton sees a ball it is about
 to load). The local solves
 warm-start from the last iterate; a ball with a gap everywhere costs no solve.
 
@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,17 +40,19 @@ from threadpoolctl import threadpool_limits
 
 from cad.errors import ConvergenceError, ParameterError
 from fe.bearing.ball_rig import load_or_build_rig
-from fe.bearing.cycle import (
+from fe.bearing.balls import (
     GRIP_X,
     GRIP_Z,
     PRELOAD,
     BallState,
-    BearingCycle,
-    PreloadResult,
     ball_law,
-    bearing_result,
     newton_scales,
     newton_step,
+)
+from fe.bearing.loading import (
+    BearingCycle,
+    PreloadResult,
+    bearing_result,
     preload_step,
     with_zero_crossing,
 )
@@ -58,6 +60,7 @@ from fe.bearing.meshed_ball import BallStep, MeshedBallLaw, check_converged, rig
 from fe.bearing.system import BearingSystem
 from fe.contact import ContactState
 from fe.contact.law import ContactStatus
+from fe.cycle.driver import Recorded, Target, drive
 from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
 from fe.hinge.result import CycleResult, Increment
 from mesh.ball_block import BallBlockGrid
@@ -361,7 +364,7 @@ def run_full_cycle(
         settings: The protocol (``settings.mu`` acts on the ball contacts).
         preload_n: Plate force F_p [N].
         grid: The rig's mesh grid (``fe.bearing.ball_rig.DEFAULT_RIG_LEVEL`` when None).
-        progress: Called with (increments done, total).
+        progress: Called as ``progress(done, total)`` after each load target.
 
     Raises:
         ParameterError: If ``preload_n`` is outside [0, 500] N.
@@ -377,52 +380,76 @@ def run_full_cycle(
     # two, a default-mesh cycle took 149 s against 61 s (the rig's build above keeps them)
     with threadpool_limits(limits=settings.blas_threads, user_api="blas"):
         pre, state = full_preload(system, law, preload_n, settings)
-        pre_summary = state.summary()
         t_pre = time.perf_counter() - t0 - t_rig
-        incs: list[Increment] = []
-        states: list[ContactState] = []
-        outer: list[int] = []
-        total = sum(n for _, _, n in settings.stages())
+        step = FullStep(system, law, settings, preload_n, state)
+        timings = {"rig": t_rig, "preload": t_pre}
+        result = drive(step, settings, progress, timings_s=timings)
+    outer = tuple(i.iterations for i in result.increments)  # Newton iterations on v
+    return FullCycle(BearingCycle(result, pre), step.state, law.n_solves, law.n_skipped, outer,
+                     law.rig.n_dof, law.rig.n_points, law.rig.timings_s)  # fmt: skip
 
-        def partial() -> CycleResult:
-            return bearing_result(
-                settings, incs, states, pre_summary, {"rig": t_rig, "preload": t_pre}
-            )
 
-        t1 = time.perf_counter()
-        f_prev = 0.0
-        for stage, (f_from, f_to, n) in enumerate(settings.stages()):
-            targets = with_zero_crossing(
-                stage_targets(f_from, f_to, n, settings.grading), f_from, preload_n,
-                at_zero=preload_n > 0.0, halvings=FULL_HALVINGS,
-            )  # fmt: skip
-            for target in targets:
-                state = _advance(system, law, state, f_prev, float(target), settings, preload_n,
-                                 len(incs), partial)  # fmt: skip
-                f_prev = float(target)
-                outer.append(state.balls.iterations)
-                incs.append(
-                    Increment(
-                        stage=stage,
-                        force_n=f_prev,
-                        disp_mm=float(state.balls.alpha[GRIP_X]),
-                        side=1,
-                        iterations=state.balls.iterations,
-                        n_open=state.n_open,
-                        n_stick=state.n_stick,
-                        n_slip=state.n_slip,
-                        friction_work=state.friction_work,
-                        normal_work=state.normal_work,
-                        elastic_energy=elastic_energy_full(system, state),
-                    )
-                )
-                states.append(state.summary())
-                if progress is not None:
-                    progress(len(incs), total)
-        timings = {"rig": t_rig, "preload": t_pre, "cycle": time.perf_counter() - t1}
-        bc = BearingCycle(bearing_result(settings, incs, states, pre_summary, timings), pre)
-        return FullCycle(bc, state, law.n_solves, law.n_skipped, tuple(outer),
-                         law.rig.n_dof, law.rig.n_points, law.rig.timings_s)  # fmt: skip
+class FullStep:
+    """The bearing hinge's increment with meshed balls, for ``fe.cycle.driver.drive``.
+
+    Each target is one state of the balls at the clevis force (σ and δ_z held), solved
+    from the last committed state (``solve_full_state``) and halved on failure
+    (``_advance``). Where a stage crosses F = 0 without preload the targets approach it
+    by ``FULL_HALVINGS`` halvings on each side, without a point at F = 0 (there every ball
+    may be unloaded and the state is not unique); with preload F = 0 is a target.
+    """
+
+    def __init__(
+        self,
+        system: BearingSystem,
+        law: MeshedBallLaw,
+        settings: CycleSettings,
+        preload_n: float,
+        preload: FullState,
+    ) -> None:
+        """Start from the preloaded state ``preload`` (plate force ``preload_n`` [N])."""
+        self.system = system
+        self.law = law
+        self.settings = settings
+        self.preload_n = preload_n
+        self.preload = preload.summary()
+        self.state = preload
+
+    def targets(self, f_from: float, f_to: float, n: int) -> FloatArray:
+        """The graded targets of the stage, refined toward F = 0 where it is crossed [N]."""
+        targets = stage_targets(f_from, f_to, n, self.settings.grading)
+        return with_zero_crossing(
+            targets, f_from, self.preload_n, at_zero=self.preload_n > 0.0, halvings=FULL_HALVINGS
+        )
+
+    def advance(self, target: Target, partial: Callable[[], CycleResult]) -> Iterator[Recorded]:
+        """Reach ``target.f_to``: one increment, the balls' rig states committed."""
+        s = _advance(self.system, self.law, self.state, target.f_from, target.f_to,
+                     self.settings, self.preload_n, target.index, partial)  # fmt: skip
+        self.state = s
+        inc = Increment(
+            stage=target.stage,
+            force_n=target.f_to,
+            disp_mm=float(s.balls.alpha[GRIP_X]),
+            side=1,
+            iterations=s.balls.iterations,
+            n_open=s.n_open,
+            n_stick=s.n_stick,
+            n_slip=s.n_slip,
+            friction_work=s.friction_work,
+            normal_work=s.normal_work,
+            elastic_energy=elastic_energy_full(self.system, s),
+        )
+        yield inc, s.summary()
+
+    def result(
+        self,
+        increments: tuple[Increment, ...],
+        states: tuple[ContactState, ...],
+        timings_s: dict[str, float],
+    ) -> CycleResult:
+        """The cycle of these increments, with the preloaded state (one point per ball)."""
+        return bearing_result(self.settings, increments, states, self.preload, timings_s)
 
 
 def _advance(

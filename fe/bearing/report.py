@@ -10,7 +10,7 @@ import numpy.typing as npt
 
 from cad.bearing_geometry import BallModel
 from cad.errors import ParameterError
-from fe.bearing.cycle import ball_law, ball_state_of, contact_angles
+from fe.bearing.balls import ball_law, ball_state_of, contact_angles
 from fe.bearing.fits import FitSystem
 from fe.bearing.system import BearingSystem
 from fe.hinge.report import frames_of, write_series

@@ -4,9 +4,12 @@ Force control is exact here (see ``fe.hinge.system``): each increment prescribes
 the grip displacement δ comes out of the contact solve. Increments are graded so the
 steps are small just after each reversal, where the stick zones start to slip.
 
-This module drives the cycle; the protocol is ``fe.hinge.protocol`` and what is measured on
-the result (η, W_cycle, U_max, the energy balance) is ``fe.hinge.result``. Both are
-re-exported here, so ``from fe.hinge.cycle import CycleSettings, run_cycle`` is the public API.
+This module sets the cycle up (the touching configurations, the contact settings) and runs
+it through ``fe.cycle.driver.drive`` with the hinge's step: ``HingeStep`` here, or
+``fe.hinge.freeplay.SlidingStep`` where clamped faces hold the clevis in the free play. The
+protocol is ``fe.hinge.protocol`` and what is measured on the result (η, W_cycle, U_max,
+the energy balance) is ``fe.hinge.result``. Both are re-exported here, so
+``from fe.hinge.cycle import CycleSettings, run_cycle`` is the public API.
 """
 
 from __future__ import annotations
@@ -15,9 +18,12 @@ __all__ = [
     "DEFAULT_MU",
     "CycleResult",
     "CycleSettings",
+    "HingeStep",
     "Increment",
     "configurations",
     "grip_force",
+    "hinge_contact",
+    "increment_displacements",
     "run_cycle",
     "seed_state",
     "stage_targets",
@@ -26,27 +32,29 @@ __all__ = [
 import dataclasses
 import logging
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
-from cad.errors import ConvergenceError, ParameterError, check_range
-from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
+from cad.errors import ParameterError, check_range
+from fe.contact import ContactSettings, ContactState
+from fe.cycle.driver import CycleStep, Recorded, Target, drive
 from fe.hinge.condensed import Condensed
+from fe.hinge.crossing import has_faces
+from fe.hinge.freeplay import SlidingStep
 from fe.hinge.geometry import contact_geometry, split_window
-from fe.hinge.protocol import DEFAULT_MU, CycleSettings, stage_targets, with_cutbacks
-from fe.hinge.result import CycleResult, Increment
-from fe.hinge.system import (
-    GRIP,
-    N_RIGID,
-    HingeSystem,
-    condense,
-    displacements,
-    is_tang_side,
-    outside_gaps,
+from fe.hinge.increments import (
+    Branch,
+    advance_force,
+    check_window,
+    increment_displacements,
+    record_increment,
 )
+from fe.hinge.protocol import DEFAULT_MU, CycleSettings, stage_targets
+from fe.hinge.result import CycleResult, Increment
+from fe.hinge.system import GRIP, N_RIGID, HingeSystem, condense, is_tang_side
 
 logger = logging.getLogger(__name__)
 
@@ -99,7 +107,8 @@ def run_cycle(
         clearance_mm: Its radial clearance Δr [mm] (sets the touching configurations).
         settings: Load protocol and solver options.
         configs: Condensed configurations to reuse (they depend on the mesh and Δr only).
-        progress: Called as ``progress(done, total)`` after each increment.
+        progress: Called as ``progress(done, total)`` after each load target, ``total``
+            being the targets of the whole cycle.
 
     Returns:
         The cycle.
@@ -122,76 +131,89 @@ def run_cycle(
     )  # all threads
     t_cond = time.perf_counter() - t0
     with threadpool_limits(limits=settings.blas_threads, user_api="blas"):  # dense contact solves
-        result = _run(system, clearance_mm, settings, configs, progress)
-    object.__setattr__(result, "timings_s", {"condensation": t_cond, **result.timings_s})
+        step: CycleStep
+        if clearance_mm > 0 and has_faces(configs[1]):  # clamped faces: the free play is slid
+            step = SlidingStep(clearance_mm, settings, configs)
+        else:
+            step = HingeStep(clearance_mm, settings, configs, hinge_contact(settings))
+        timings = {"condensation": t_cond}
+        result = drive(step, settings, progress, timings_s=timings, phase="contact")
+        check_window(system, result)
     return result
 
 
-def _run(
-    system: HingeSystem,
-    clearance_mm: float,
-    settings: CycleSettings,
-    configs: dict[int, Condensed],
-    progress: Callable[[int, int], None] | None,
-) -> CycleResult:
-    if clearance_mm > 0 and np.any(np.asarray(configs[1].geo.pair) < 0):
-        from fe.hinge.freeplay import run_sliding  # clamped faces: the free play is slid
+class HingeStep:
+    """The general hinge's increment for ``fe.cycle.driver.drive``: force control, F = 0 crossed.
 
-        return run_sliding(system, clearance_mm, settings, configs, progress)
-    contact = hinge_contact(settings)
-    side = 1
-    cond = configs[side]
-    first = settings.stages()[0]
-    state = (
-        seed_state(cond, stage_targets(*first, settings.grading)[0])
-        if clearance_mm > 0
-        else ContactState.initial(len(cond.geo.slave), N_RIGID, w=cond.w0)
-    )
-    incs: list[Increment] = []
-    states: list[ContactState] = []
-    total = sum(n for _, _, n in settings.stages())
-    t1 = time.perf_counter()
+    Each target is one force-controlled increment in the current touching configuration
+    (``fe.hinge.increments.advance_force``), started on the branch's extrapolation. With
+    clearance the unloaded start is the tension configuration seeded toward the first
+    force (``seed_state``); where the force changes sign the pin changes sides: the
+    increment to F = 0 is recorded, and the other configuration is seeded toward the
+    target.
+    """
 
-    def partial() -> CycleResult:
-        return CycleResult(
-            settings,
-            clearance_mm,
-            tuple(incs),
-            4 * clearance_mm,
-            tuple(states),
-            configs,
-            {},
-        )
+    def __init__(
+        self,
+        clearance_mm: float,
+        settings: CycleSettings,
+        configs: dict[int, Condensed],
+        contact: ContactSettings,
+    ) -> None:
+        """Start unloaded in the tension configuration (+1) of ``configs``."""
+        self.clearance_mm = clearance_mm
+        self.settings = settings
+        self.configs = configs
+        self.contact = contact
+        self.side = 1
+        self.state: ContactState | None = None  # seeded at the first target
+        self.previous: Branch | None = None
 
-    f_prev = 0.0
-    peaks: list[int] = []  # increments at the end of a stage, where the window is checked
-    for stage, (f_from, f_to, n) in enumerate(settings.stages()):
-        previous: tuple[float, ContactState] | None = None  # no extrapolation across a reversal
-        for target in stage_targets(f_from, f_to, n, settings.grading):
-            if clearance_mm > 0 and f_prev * target < 0:  # crossing zero: the pin changes sides
-                new, res = _advance(
-                    cond, state, f_prev, 0.0, contact, settings, len(incs), partial, previous
-                )
-                incs.append(_record(stage, 0.0, side, res, cond))
-                states.append(new)
-                side = -side
-                cond = configs[side]
-                state = seed_state(cond, float(target))
-                f_prev, previous = 0.0, None
-            new, res = _advance(
-                cond, state, f_prev, float(target), contact, settings, len(incs), partial, previous
+    def targets(self, f_from: float, f_to: float, n: int) -> FloatArray:
+        """The graded targets of the stage (``stage_targets``), shape (n,) [N]."""
+        return stage_targets(f_from, f_to, n, self.settings.grading)
+
+    def advance(self, target: Target, partial: Callable[[], CycleResult]) -> Iterator[Recorded]:
+        """Reach ``target.f_to``; yield the increment to F = 0 first where the pin changes sides."""
+        cond = self.configs[self.side]
+        if self.state is None:
+            self.state = (
+                seed_state(cond, target.f_to)
+                if self.clearance_mm > 0
+                else ContactState.initial(len(cond.geo.slave), N_RIGID, w=cond.w0)
             )
-            incs.append(_record(stage, float(target), side, res, cond))
-            states.append(new)
-            previous, state, f_prev = (f_prev, state), new, float(target)
-            if target == f_to:
-                peaks.append(len(incs) - 1)
-            if progress is not None:
-                progress(min(len(incs), total), total)
-    result = partial()
-    object.__setattr__(result, "timings_s", {"contact": time.perf_counter() - t1})
-    _check_window(system, result, peaks)
-    return result
+        if target.first:
+            self.previous = None  # no extrapolation across a reversal
+        f_from, index = target.f_from, target.index
+        if self.clearance_mm > 0 and f_from * target.f_to < 0:  # the pin changes sides
+            new, res = advance_force(cond, self.state, f_from, 0.0, self.contact, self.settings,
+                               index, partial, self.previous)  # fmt: skip
+            yield record_increment(target.stage, 0.0, self.side, res, cond), new
+            self.side = -self.side
+            cond = self.configs[self.side]
+            self.state = seed_state(cond, target.f_to)
+            f_from, index, self.previous = 0.0, index + 1, None
+        new, res = advance_force(cond, self.state, f_from, target.f_to, self.contact, self.settings,
+                           index, partial, self.previous)  # fmt: skip
+        self.previous, self.state = (f_from, self.state), new
+        yield record_increment(target.stage, target.f_to, self.side, res, cond), new
+
+    def result(
+        self,
+        increments: tuple[Increment, ...],
+        states: tuple[ContactState, ...],
+        timings_s: dict[str, float],
+    ) -> CycleResult:
+        """The cycle of these increments: free play 4Δr, both configurations kept."""
+        return CycleResult(
+            self.settings,
+            self.clearance_mm,
+            increments,
+            4 * self.clearance_mm,
+            states,
+            self.configs,
+            timings_s,
+        )
 
 
 HINGE_SINGLE_MIN = 256
@@ -234,57 +256,6 @@ def hinge_contact(settings: CycleSettings) -> ContactSettings:
     )
 
 
-def increment_displacements(
-    system: HingeSystem, result: CycleResult, indices: Sequence[int]
-) -> list[FloatArray]:
-    """Displacement fields of chosen increments, shape (n_nodes, 3) each [mm], in one batch.
-
-    One batch because a large mesh refactorises for every recovery
-    (``HingeSystem.low_memory``).
-    """
-    return displacements(
-        system,
-        [
-            (
-                result.configs[result.increments[k].side],
-                np.asarray(result.states[k].p),
-                np.asarray(result.states[k].alpha),
-            )
-            for k in indices
-        ],
-    )
-
-
-def _check_window(system: HingeSystem, result: CycleResult, peaks: list[int]) -> None:
-    """Raise if a point outside the contact window has closed (the window was too small).
-
-    Checked at the stage ends (the load peaks), all at once after the cycle: recovering
-    displacements needs the sparse factors, which a large mesh holds one at a time
-    (``HingeSystem.low_memory``), so one batch costs one factorisation per part.
-    """
-    peaks = [k for k in peaks if result.configs[result.increments[k].side].outside is not None]
-    if not peaks:
-        return
-    fields = increment_displacements(system, result, peaks)
-    for k, u in zip(peaks, fields, strict=True):
-        cond = result.configs[result.increments[k].side]
-        gaps = outside_gaps(cond, u)
-        i = int(np.argmin(gaps))
-        if gaps[i] < 0.0:
-            assert cond.outside is not None
-            x = np.asarray(system.mesh.nodes)[cond.outside.slave[i]]
-            theta = np.degrees(np.arctan2(x[1], x[0]))
-            raise ConvergenceError(
-                f"contact window too small: a point outside it (θ = {theta:.1f}°, "
-                f"z = {x[2]:.2f} mm) closed by {-gaps[i] * 1e3:.3f} µm at "
-                f"F = {result.increments[k].force_n:g} N; raise CycleSettings.contact_window",
-                increment=k,
-                iteration=0,
-                residual=float(-gaps[i]),
-                partial=result,
-            )
-
-
 SEED_GAP_MM = 1e-6
 """Points whose initial gap is below this touch in the touching configuration [mm]."""
 
@@ -314,94 +285,6 @@ def seed_state(cond: Condensed, force_n: float) -> ContactState:
     p = np.zeros((m, 3))
     p[touching, 0] = np.maximum(x[: touching.size], 0.0)
     return ContactState(p, cond.w0, state0.status, x[touching.size :])
-
-
-def _advance(
-    cond: Condensed,
-    state: ContactState,
-    f_from: float,
-    f_to: float,
-    contact: ContactSettings,
-    settings: CycleSettings,
-    index: int,
-    partial: Callable[[], CycleResult],
-    previous: tuple[float, ContactState] | None = None,
-) -> tuple[ContactState, IncrementResult]:
-    """Go from force f_from to f_to, halving the step on failure up to max_cutbacks times.
-
-    Args:
-        cond: The configuration's condensed operators.
-        state: Converged state at ``f_from``.
-        f_from: Force at the start [N].
-        f_to: Force to reach [N].
-        contact: Contact-solver settings.
-        settings: Cycle settings (cut-back limit).
-        index: Increment index for error messages.
-        partial: Builds the partial result attached to a final ConvergenceError.
-        previous: The converged (force, state) before ``state`` on the same branch, if
-            any. While the active set holds, the solution is linear in F, so Newton
-            starts from the linear extrapolation of the last two states (one or two
-            iterations instead of about ten); the solution does not depend on it.
-
-    Returns the final state and the IncrementResult with works summed over sub-steps.
-    """
-
-    def attempt(n_sub: int) -> tuple[ContactState, IncrementResult]:
-        s = state
-        works = np.zeros(2)
-        iters = 0
-        for k in range(1, n_sub + 1):
-            f = f_from + (f_to - f_from) * k / n_sub
-            e = np.zeros(N_RIGID)
-            e[GRIP] = -f  # clevis equilibrium: G_δᵀ p = −F
-            start = None
-            if previous is not None and k == 1 and previous[0] != f_from:
-                t = (f - f_from) / (f_from - previous[0])
-                start = (
-                    np.asarray(s.p) + t * (np.asarray(s.p) - np.asarray(previous[1].p)),
-                    np.asarray(s.alpha) + t * (np.asarray(s.alpha) - np.asarray(previous[1].alpha)),
-                )
-            res = solve_increment(
-                cond.W, cond.w0, s, contact, G=cond.G, e=e, increment=index, start=start
-            )
-            works += [res.friction_work.sum(), res.normal_work.sum()]
-            iters += res.iterations
-            s = res.state
-        return s, _summed(res, works, iters)
-
-    what = f"increment {index} (F {f_from:.4g} → {f_to:.4g} N)"
-    return with_cutbacks(
-        attempt, settings.max_cutbacks, increment=index, what=what, partial=partial
-    )
-
-
-def _summed(res: IncrementResult, works: FloatArray, iters: int) -> IncrementResult:
-    """Return ``res`` with per-point works replaced by sub-step totals (kept as length-1 arrays)."""
-    return dataclasses.replace(
-        res, friction_work=np.array([works[0]]), normal_work=np.array([works[1]]), iterations=iters
-    )
-
-
-def _record(
-    stage: int, force: float, side: int, res: IncrementResult, cond: Condensed
-) -> Increment:
-    p = np.ravel(res.state.p)
-    # W p from the converged w = W p + G α + w0 (an exact product in solve_increment),
-    # rather than another pass over W
-    Wp = np.ravel(res.state.w - cond.w0) - cond.G @ np.asarray(res.state.alpha)
-    return Increment(
-        stage=stage,
-        force_n=force,
-        disp_mm=float(res.state.alpha[GRIP]),
-        side=side,
-        iterations=res.iterations,
-        n_open=res.n_open,
-        n_stick=res.n_stick,
-        n_slip=res.n_slip,
-        friction_work=float(np.sum(res.friction_work)),
-        normal_work=float(np.sum(res.normal_work)),
-        elastic_energy=0.5 * float(p @ Wp),
-    )
 
 
 def grip_force(cond: Condensed, p: FloatArray) -> float:

@@ -8,15 +8,18 @@ slides rigidly across the free play at that force until the pin touches the othe
 The loop therefore crosses the free play at ``F = ±F_slide``, not at 0, and the crossing
 is a rectangle of area ``F_slide × travel``: real dissipation at the faces.
 
-How it is computed (``run_sliding``), with the two touching configurations of
-``fe.hinge.cycle.configurations`` (the clevis at ``±2Δr`` from the tang, the pin at ``±Δr``):
+How it is computed (``SlidingStep``, which ``fe.hinge.cycle.run_cycle`` drives through
+``fe.cycle.driver.drive`` when the configurations have face points), with the two touching
+configurations of ``fe.hinge.cycle.configurations`` (the clevis at ``±2Δr`` from the tang,
+the pin at ``±Δr``):
 
 * **start**: the pin centred in its holes, the clevis centred (``δ = −2Δr`` in the
   tension configuration's coordinates), nothing touching; the clamp is applied with the
   first load increment, as at Δr = 0.
-* **force control** (as ``fe.hinge.cycle._advance``) in the current configuration while the
-  target is within what the faces hold, or on the side where the pin is engaged; the pin
-  may open and float (``p = 0`` on all its points), the faces then carry the load alone.
+* **force control** (as ``fe.hinge.increments.advance_force``) in the current
+  configuration while the target is within what the faces hold, or on the side where the
+  pin is engaged; the pin may open and float (``p = 0`` on all its points), the faces then
+  carry the load alone.
   Until the first slide the faces alone are solved (``_held``) and the pin stays centred.
 * **approach**: when a target lies beyond ``F_slide`` on the side where the pin is not
   engaged, force control goes to ``(1 − APPROACH_MARGIN) F_slide``, then the grip is
@@ -44,8 +47,7 @@ the footprint).
 from __future__ import annotations
 
 import dataclasses
-import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import numpy.typing as npt
@@ -58,6 +60,7 @@ from fe.contact import (
     IncrementResult,
     solve_increment,
 )
+from fe.cycle.driver import Recorded, Target
 from fe.hinge.condensed import Condensed
 from fe.hinge.crossing import (
     consistent_w,
@@ -67,10 +70,10 @@ from fe.hinge.crossing import (
     status_counts,
     switched_state,
 )
-from fe.hinge.cycle import _check_window, _record
+from fe.hinge.increments import Branch, branch_start, record_increment, solve_at_force
 from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
 from fe.hinge.result import CycleResult, Increment
-from fe.hinge.system import GRIP, N_PIN_MODES, N_RIGID, HingeSystem
+from fe.hinge.system import GRIP, N_PIN_MODES, N_RIGID
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -235,9 +238,9 @@ def _forced(
     settings: CycleSettings,
     index: int,
     partial: Callable[[], CycleResult],
-    previous: tuple[float, ContactState] | None,
+    previous: Branch | None,
 ) -> list[tuple[float, ContactState, IncrementResult]]:
-    """Force control from ``f_from`` to ``f_to`` (as ``fe.hinge.cycle._advance``), every sub-step kept.
+    """Force control from ``f_from`` to ``f_to`` (as ``advance_force``), every sub-step kept.
 
     A cut-back's sub-steps are returned (and recorded) one by one, so the loop has their
     points and its trapezoidal area matches their works exactly.
@@ -248,20 +251,8 @@ def _forced(
         st, f0, prev = state, f_from, previous
         for k in range(1, n_sub + 1):
             f = f_from + (f_to - f_from) * k / n_sub
-            e = np.zeros(N_RIGID)
-            e[GRIP] = -f  # clevis equilibrium: G_δᵀ p = −F
-            start = None
-            if prev is not None and prev[0] != f0:  # as _advance: extrapolate on the branch
-                t = (f - f0) / (f0 - prev[0])
-                p, a = np.asarray(st.p), np.asarray(st.alpha)
-                start = (
-                    p + t * (p - np.asarray(prev[1].p)),
-                    a + t * (a - np.asarray(prev[1].alpha)),
-                )
-            res = solve_increment(
-                cond.W, cond.w0, st, contact, G=cond.G, e=e, increment=index + len(out),
-                start=start,
-            )  # fmt: skip
+            start = branch_start(st, f0, f, prev)  # every sub-step on the branch
+            res = solve_at_force(cond, st, f, contact, index + len(out), start)
             out.append((f, res.state, res))
             st, f0, prev = res.state, f, (f0, st)
         return out
@@ -358,109 +349,128 @@ def _slide(
     return dataclasses.replace(slid, state=ContactState(p, w, slid.state.status, alpha))
 
 
-def run_sliding(
-    system: HingeSystem,
-    clearance_mm: float,
-    settings: CycleSettings,
-    configs: dict[int, Condensed],
-    progress: Callable[[int, int], None] | None,
-) -> CycleResult:
-    """Run the cycle of a hinge with clearance and clamped faces (module docstring)."""
-    contact = settings.contact()
-    half = 2.0 * clearance_mm  # the clevis' offset of each touching configuration
-    f_slide = {d: slide_force(configs[d], contact, d) for d in (1, -1)}
-    side, engaged = 1, 0  # coordinates of the tension configuration; the pin centred
-    cond = configs[side]
-    m = len(cond.geo.slave)
-    alpha0 = np.zeros(N_RIGID)
-    alpha0[0], alpha0[GRIP] = -0.5 * half, -half  # pin and clevis centred
-    p0 = np.zeros((m, 3))
-    state = ContactState(p0, consistent_w(cond, p0, alpha0), np.zeros(m, dtype=np.int8), alpha0)
-    incs: list[Increment] = []
-    states: list[ContactState] = []
-    slides: list[int] = []
-    total = sum(n for _, _, n in settings.stages())
-    t1 = time.perf_counter()
+class SlidingStep:
+    """The increment of a hinge with clearance and clamped faces, for ``fe.cycle.driver.drive``.
 
-    def partial() -> CycleResult:
-        return CycleResult(
-            settings,
-            clearance_mm,
-            tuple(incs),
-            4 * clearance_mm,
-            tuple(states),
-            configs,
-            {},
-            slides=tuple(slides),
-            start_disp_mm=-half,
-        )
+    The module docstring's steps: force control while the faces hold the clevis or the pin
+    is engaged on the side pulled to; where a target lies beyond the faces' slip force on
+    the other side, force control to just below it, the approach and the slide, then
+    force control on to the target. Every step is recorded; the slides' indices and the
+    centred start are kept in the result (``CycleResult.slides``, ``start_disp_mm``).
+    """
 
-    def keep(stage: int, s: int, step: _Step) -> float:
-        """Record a step of this module; return its force."""
+    def __init__(
+        self, clearance_mm: float, settings: CycleSettings, configs: dict[int, Condensed]
+    ) -> None:
+        """Start with the pin and the clevis centred in the tension configuration's coordinates."""
+        self.clearance_mm = clearance_mm
+        self.settings = settings
+        self.configs = configs
+        self.contact = settings.contact()
+        self.half = 2.0 * clearance_mm  # the clevis' offset of each touching configuration
+        self.f_slide = {d: slide_force(configs[d], self.contact, d) for d in (1, -1)}
+        self.side, self.engaged = 1, 0  # coordinates of the tension configuration; pin centred
+        cond = configs[self.side]
+        m = len(cond.geo.slave)
+        alpha0 = np.zeros(N_RIGID)
+        alpha0[0], alpha0[GRIP] = -0.5 * self.half, -self.half  # pin and clevis centred
+        p0 = np.zeros((m, 3))
+        status0 = np.zeros(m, dtype=np.int8)
+        self.state = ContactState(p0, consistent_w(cond, p0, alpha0), status0, alpha0)
+        self.previous: Branch | None = None
+        self.slides: list[int] = []
+
+    def targets(self, f_from: float, f_to: float, n: int) -> FloatArray:
+        """The graded targets of the stage (``stage_targets``), shape (n,) [N]."""
+        return stage_targets(f_from, f_to, n, self.settings.grading)
+
+    def advance(self, target: Target, partial: Callable[[], CycleResult]) -> Iterator[Recorded]:
+        """Reach ``target.f_to``, sliding across the free play first where the faces let go."""
+        if target.first:
+            self.previous = None  # no extrapolation across a reversal
+        f_prev, index, stage = target.f_from, target.index, target.stage
+        d = 1 if target.f_to > 0 else -1
+        if d != self.engaged and abs(target.f_to) > self.f_slide[d]:  # the faces let go
+            f_a = d * (1.0 - APPROACH_MARGIN) * self.f_slide[d]
+            if d * f_prev < abs(f_a):
+                held = self._force(stage, f_prev, f_a, index, partial)
+                yield from held
+                index += len(held)
+            steps = _approach(self.configs[self.side], self.state, d, self.contact,
+                              self.settings, index, partial, self.engaged == 0)  # fmt: skip
+            for step in steps:
+                yield self._keep(stage, step)
+            index += len(steps)
+            shift = (self.side - d) * self.half
+            slid = _slide(self.configs[self.side], self.configs[d], steps[-1].state, shift, d,
+                          self.contact, index)  # fmt: skip
+            self.side, self.engaged = d, d
+            self.slides.append(index)
+            slide = self._keep(stage, slid)
+            self.state, self.previous = slid.state, None
+            yield slide
+            f_prev, index = slide[0].force_n, index + 1
+        before = (f_prev, self.state)
+        records = self._force(stage, f_prev, target.f_to, index, partial)
+        self.previous = before
+        yield from records
+
+    def _force(
+        self,
+        stage: int,
+        f_from: float,
+        f_to: float,
+        index: int,
+        partial: Callable[[], CycleResult],
+    ) -> list[Recorded]:
+        """Force control from ``f_from`` to ``f_to``, every (sub-)step recorded; the state moves on."""
+        cond = self.configs[self.side]
+        if self.engaged == 0:  # the faces hold the clevis centred: the pin stays out
+            held = _held_steps(cond, self.state, f_from, f_to, self.contact, self.settings,
+                               index, partial)  # fmt: skip
+            records = [self._keep(stage, step) for step in held]
+        else:
+            forced = _forced(cond, self.state, f_from, f_to, self.contact, self.settings, index,
+                             partial, self.previous)  # fmt: skip
+            records = [(record_increment(stage, f, self.side, res, cond), new)
+                       for f, new, res in forced]  # fmt: skip
+        self.state = records[-1][1]
+        return records
+
+    def _keep(self, stage: int, step: _Step) -> Recorded:
+        """The record of a step of this module on the current side."""
+        cond = self.configs[self.side]
         p = np.ravel(step.state.p)
-        f = float(-np.asarray(configs[s].G)[:, GRIP] @ p)
-        incs.append(
-            Increment(
-                stage=stage,
-                force_n=f,
-                disp_mm=float(step.state.alpha[GRIP]),
-                side=s,
-                iterations=step.iterations,
-                n_open=step.n_counts[0],
-                n_stick=step.n_counts[1],
-                n_slip=step.n_counts[2],
-                friction_work=step.friction_work,
-                normal_work=step.normal_work,
-                elastic_energy=0.5 * float(p @ (configs[s].W @ p)),
-            )
+        inc = Increment(
+            stage=stage,
+            force_n=float(-np.asarray(cond.G)[:, GRIP] @ p),
+            disp_mm=float(step.state.alpha[GRIP]),
+            side=self.side,
+            iterations=step.iterations,
+            n_open=step.n_counts[0],
+            n_stick=step.n_counts[1],
+            n_slip=step.n_counts[2],
+            friction_work=step.friction_work,
+            normal_work=step.normal_work,
+            elastic_energy=0.5 * float(p @ (cond.W @ p)),
         )
-        states.append(step.state)
-        return f
+        return inc, step.state
 
-    def forced(
-        stage: int, f_to: float, previous: tuple[float, ContactState] | None
-    ) -> ContactState:
-        """Force control from ``f_prev`` to ``f_to``, every (sub-)step recorded; the last state."""
-        if engaged == 0:  # the faces hold the clevis centred: the pin stays out
-            for step in _held_steps(
-                cond, state, f_prev, f_to, contact, settings, len(incs), partial
-            ):
-                keep(stage, side, step)
-            return step.state
-        for f, new, res in _forced(
-            cond, state, f_prev, f_to, contact, settings, len(incs), partial, previous
-        ):
-            incs.append(_record(stage, f, side, res, cond))
-            states.append(new)
-        return new
-
-    f_prev = 0.0
-    peaks: list[int] = []
-    for stage, (f_from, f_to, n) in enumerate(settings.stages()):
-        previous: tuple[float, ContactState] | None = None
-        for target in stage_targets(f_from, f_to, n, settings.grading):
-            d = 1 if target > 0 else -1
-            if d != engaged and abs(target) > f_slide[d]:  # the faces let go: slide
-                f_a = d * (1.0 - APPROACH_MARGIN) * f_slide[d]
-                if d * f_prev < abs(f_a):
-                    state, f_prev = forced(stage, f_a, previous), f_a
-                steps = _approach(
-                    cond, state, d, contact, settings, len(incs), partial, engaged == 0
-                )
-                for step in steps:
-                    f_prev = keep(stage, side, step)
-                    state = step.state
-                step = _slide(cond, configs[d], state, (side - d) * half, d, contact, len(incs))
-                side, engaged, cond = d, d, configs[d]
-                slides.append(len(incs))
-                f_prev, state, previous = keep(stage, side, step), step.state, None
-            new = forced(stage, float(target), previous)
-            previous, state, f_prev = (f_prev, state), new, float(target)
-            if target == f_to:
-                peaks.append(len(incs) - 1)
-            if progress is not None:
-                progress(min(len(incs), total), total)
-    result = partial()
-    object.__setattr__(result, "timings_s", {"contact": time.perf_counter() - t1})
-    _check_window(system, result, peaks)
-    return result
+    def result(
+        self,
+        increments: tuple[Increment, ...],
+        states: tuple[ContactState, ...],
+        timings_s: dict[str, float],
+    ) -> CycleResult:
+        """The cycle of these increments, with its slides and the centred start."""
+        return CycleResult(
+            self.settings,
+            self.clearance_mm,
+            increments,
+            4 * self.clearance_mm,
+            states,
+            self.configs,
+            timings_s,
+            slides=tuple(self.slides),
+            start_disp_mm=-self.half,
+        )
