@@ -23,8 +23,9 @@ from threadpoolctl import threadpool_info, threadpool_limits
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script from anywhere
 
-from fe.assembly import Factorization, assemble_stiffness, dofs_of
+from fe.assembly import assemble_stiffness, dofs_of
 from fe.element import ElementType
+from fe.linalg.sparse import Factorization
 from tests.helpers import box_mesh
 
 

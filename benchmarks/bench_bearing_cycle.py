@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cad.bearing import BearingHingeParams
-from fe.hinge.protocol import CycleSettings
+from cad.bearing_geometry import BearingHingeParams
+from fe.cycle.protocol import CycleSettings
 from fe.kinds import hinge_kind
 from model.service import ModelService
 from model.spec import DesignPoint, ModelSpec

@@ -48,12 +48,12 @@ def run_model(
     import numpy as np
     from threadpoolctl import threadpool_limits
 
-    from cad.bearing import BallModel, BearingHingeParams
+    from cad.bearing_geometry import BallModel, BearingHingeParams
     from fe.bearing import ball_rig
     from fe.bearing.cycle import run_bearing_cycle
     from fe.bearing.full_cycle import run_full_cycle
     from fe.bearing.one_ball import MESH_LEVELS
-    from fe.hinge.protocol import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from model.service import ModelService
     from model.spec import DesignPoint, ModelSpec
 

@@ -23,7 +23,8 @@ import resource
 import time
 from dataclasses import dataclass
 
-from cad.bearing import BearingHingeParams, make_bearing_hinge
+from cad.bearing import make_bearing_hinge
+from cad.bearing_geometry import BearingHingeParams
 from mesh.build import SET_TOL_MM, mesh_part
 from mesh.facets import boundary_facets, select_facets
 from mesh.quality import check_quality, hex_volumes

@@ -52,7 +52,7 @@ def model_file(
 ) -> Path:
     """Write the benchmark's MODEL.toml (coarse, default or conforming mesh)."""
     from cad.general import GeneralHingeParams
-    from fe.hinge.cycle import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.file import write_model
     from model.spec import ModelSpec
@@ -156,9 +156,10 @@ def mortar_row(
 ) -> dict[str, object]:
     """The whole cycle in both solvers on the conforming mesh, ccx with exact mortar contact."""
     from cad.general import GeneralHingeParams, make_general_hinge
-    from fe.effects import REGISTRY
+    from fe.effects.registry import REGISTRY
     from fe.interop.ccx import loop_figures, loop_from_dat, parse_dat, parse_sta
-    from fe.interop.inp import GRIP_REF_SET, DeckSettings, write_deck
+    from fe.interop.deck_settings import DeckSettings
+    from fe.interop.inp import GRIP_REF_SET, write_deck
     from mesh.build import mesh_hinge
     from model.file import read_model
 

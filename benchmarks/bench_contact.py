@@ -14,7 +14,7 @@ Q = 0.8 μ P (partial slip with an annulus of slip). Run:
 Each case runs with the old path (``LinearSolver.LU``: dense LU per iteration, chord
 steps) and the new one (``LinearSolver.KRYLOV``) in the same process, and prints the
 ratio new/old. ``--hinge`` replays the first increments of a hinge cycle (400 N, μ 0.2)
-from an .npz with the condensed ``W``, ``G`` and ``w0`` of ``fe.hinge.cycle.configurations``
+from an .npz with the condensed ``W``, ``G`` and ``w0`` of ``fe.general.cycle.configurations``
 (e.g. ``np.savez(path, W=c.W, G=c.G, w0=c.w0)``), to time refinement levels whose
 condensation takes minutes.
 
@@ -50,8 +50,9 @@ import tracemalloc
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from fe.contact import ContactSettings, ContactState, LinearSolver, solve_increment
 from fe.contact import newton as contact_newton
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState, LinearSolver
 
 E_STAR_MPA = 110_000.0
 
@@ -113,8 +114,8 @@ def run_hinge(path: str, n_stage0: int, n_stage1: int, solver: LinearSolver):
     """Replay the first increments of stages 0 and 1 (all stages if n_stage0 < 0) on a saved W."""
     import types
 
-    from fe.hinge.increments import advance_force
-    from fe.hinge.protocol import CycleSettings, stage_targets
+    from fe.cycle.protocol import CycleSettings, stage_targets
+    from fe.general.increments import advance_force
 
     data = np.load(path)
     cond = types.SimpleNamespace(W=np.ascontiguousarray(data["W"]), G=data["G"], w0=data["w0"])

@@ -37,10 +37,10 @@ def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict
     import fe.contact.globalise as globalise
     import fe.contact.krylov as krylov
     import fe.contact.working as working
-    import fe.hinge.cycle as cycle
-    import fe.hinge.increments as increments
+    import fe.general.cycle as cycle
+    import fe.general.increments as increments
     from cad.general import GeneralHingeParams
-    from fe.hinge.cycle import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.service import ModelService
     from model.spec import DesignPoint, ModelSpec

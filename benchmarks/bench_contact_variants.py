@@ -68,7 +68,8 @@ CAPTURE = 19
 
 def _prepare(level: int, condense: bool = True) -> tuple[Any, Any, Any]:
     from cad.general import GeneralHingeParams
-    from fe.hinge.cycle import CycleSettings, configurations
+    from fe.cycle.protocol import CycleSettings
+    from fe.general.cycle import configurations
     from mesh.settings import MeshSettings
     from model.service import ModelService
     from model.spec import DesignPoint, ModelSpec
@@ -95,7 +96,7 @@ def _patched(module: Any, name: str, value: Any) -> Iterator[None]:
 
 def _start_wrapper(mode: str, solve: Callable[..., Any]) -> Callable[..., Any]:
     """The cycle's ``solve_increment`` with another start: ``previous`` or ``quadratic``."""
-    from fe.hinge.cycle import GRIP
+    from fe.general.system import GRIP
 
     history: list[tuple[float, Any, Any]] = []  # (force, p, alpha) on this branch
     last_force = [0.0]
@@ -165,8 +166,8 @@ def variants(level: int) -> list[dict[str, Any]]:
     import fe.contact.dense as dense
     import fe.contact.globalise as globalise
     import fe.contact.krylov as krylov
-    import fe.hinge.cycle as cycle
-    import fe.hinge.increments as increments
+    import fe.general.cycle as cycle
+    import fe.general.increments as increments
 
     spec, system, configs = _prepare(level)
     counts = {"lus": 0, "gmres": 0}
@@ -194,16 +195,16 @@ def variants(level: int) -> list[dict[str, Any]]:
         solve = increments.solve_increment
         if "start" in change:
             solve = _start_wrapper(change["start"], increments.solve_increment)
-        search = globalise._line_search
+        search = globalise.line_search
         if "nonmonotone" in change:
-            search = _nonmonotone(globalise._line_search, change["nonmonotone"])
+            search = _nonmonotone(globalise.line_search, change["nonmonotone"])
         counts.update(lus=0, gmres=0)
         with (
             _patched(dense.sla, "lu_factor", lu_counted),
             _patched(krylov, "gmres", gmres_counted),
             _patched(cycle, "hinge_contact", contact),
             _patched(increments, "solve_increment", solve),
-            _patched(globalise, "_line_search", search),
+            _patched(globalise, "line_search", search),
         ):
             for cond in configs.values():  # no base LU carried over from the last run
                 krylov.release(cond.W)
@@ -231,8 +232,8 @@ def variants(level: int) -> list[dict[str, Any]]:
 def _capture(level: int) -> tuple[Any, Any, Any]:
     """W, the closed points' coordinates and the middle Newton system of ``CAPTURE``."""
     import fe.contact.krylov as krylov
-    import fe.hinge.cycle as cycle
-    import fe.hinge.increments as increments
+    import fe.general.cycle as cycle
+    import fe.general.increments as increments
 
     spec, system, configs = _prepare(level)
     systems: list[Any] = []
@@ -426,7 +427,7 @@ def compressibility(level: int) -> list[dict[str, Any]]:
 def oracle(level: int) -> list[dict[str, Any]]:
     """The default cycle and the one-step-per-increment bound; one row each."""
     import fe.contact.solve as solve
-    import fe.hinge.cycle as cycle
+    import fe.general.cycle as cycle
     from fe.contact.dense import factor_jacobian, gather_block, lu_solve
     from fe.contact.newton import form_jacobian, linearise, sparse_product
 

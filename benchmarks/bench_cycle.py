@@ -29,7 +29,7 @@ from _common import print_table, run_isolated
 def case(level: int, clearance: float, threads: int = 1, **mesh: float) -> dict[str, object]:
     """Run the default 400 N cycle at one refinement; ``mesh``: other MeshSettings fields."""
     from cad.general import GeneralHingeParams
-    from fe.hinge.cycle import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.service import ModelService
     from model.spec import DesignPoint, ModelSpec

@@ -45,7 +45,7 @@ CHECKS: tuple[tuple[str, dict[str, dict[str, float]], Any, int], ...] = (
 
 def _spec() -> Any:
     from cad.general import GeneralHingeParams
-    from fe.hinge.cycle import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec
 
@@ -60,7 +60,8 @@ def _spec() -> Any:
 def case(label: str, hidden: dict[str, dict[str, float]], design: Any, seed: int) -> dict[str, Any]:
     import time
 
-    from validation.diagnose import DiagnoseSettings, diagnose
+    from validation.candidate_fit import DiagnoseSettings
+    from validation.diagnose import diagnose
     from validation.measurements import read_measurement_set
     from validation.synth import SynthSettings, design_cases, synthesize
 

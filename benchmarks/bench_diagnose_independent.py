@@ -35,7 +35,7 @@ FORCE_NOISE_REL, DISP_NOISE_MM = 0.005, 2e-4
 
 def _truth_paths() -> dict[tuple[float, float], tuple[np.ndarray, np.ndarray, float]]:
     from cad.general import GeneralHingeParams
-    from fe.hinge.protocol import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.service import ModelService
     from model.spec import DesignPoint, ModelSpec
@@ -64,7 +64,8 @@ def _sample(F: np.ndarray, d: np.ndarray, amp: float, rng: np.random.Generator, 
 
 
 def _dataset(paths: dict[Any, Any], seed: int, g: float = 0.0, c: float = 0.0) -> Any:
-    from validation.measurements import Case, Loop, MeasurementSet
+    from validation.loop_files import Loop
+    from validation.measurements import Case, MeasurementSet
 
     rng = np.random.default_rng([seed, 7])
     cases = []
@@ -77,11 +78,11 @@ def _dataset(paths: dict[Any, Any], seed: int, g: float = 0.0, c: float = 0.0) -
 
 def main(n_null: int) -> None:
     from cad.general import GeneralHingeParams
-    from fe.hinge.protocol import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec
-    from validation.candidate_fit import measured_features
-    from validation.diagnose import DiagnoseSettings, diagnose
+    from validation.candidate_fit import DiagnoseSettings, measured_features
+    from validation.diagnose import diagnose
     from validation.evaluate import ModelEvaluator
 
     t0 = time.perf_counter()

@@ -37,8 +37,9 @@ def _solve(path: str, queue: Any) -> None:
     from threadpoolctl import threadpool_limits
 
     from cad.errors import ConvergenceError
-    from fe.contact import ContactSettings, ContactState, solve_increment
     from fe.contact.measure import siconos_error
+    from fe.contact.solve import solve_increment
+    from fe.contact.state import ContactSettings, ContactState
 
     with np.load(path) as d:
         W, q, mu = d["W"], d["q"], d["mu"]

@@ -34,17 +34,7 @@ import itertools
 import build123d as bd
 
 from cad.bearing_geometry import (
-    CONTACT_EDGE_MARGIN_DEG,
-    MIN_BALL_GAP_RATIO,
-    MIN_GROOVE_DEPTH_RATIO,
-    MIN_LAND_FRACTION,
-    MIN_RING_WALL_FRACTION,
-    MIN_WALL_MM,
-    Arrangement,
-    BallModel,
     BearingHingeParams,
-    Interfaces,
-    RaceGeometry,
     ball_center,
     contact_points,
     race_geometry,
@@ -65,22 +55,8 @@ from cad.model import (
 from cad.surfaces import Cylinder, Plane, Sphere, Torus
 
 __all__ = [
-    "CONTACT_EDGE_MARGIN_DEG",
-    "MIN_BALL_GAP_RATIO",
-    "MIN_GROOVE_DEPTH_RATIO",
-    "MIN_LAND_FRACTION",
-    "MIN_RING_WALL_FRACTION",
-    "MIN_WALL_MM",
     "SURFACE_TOL_MM",
-    "Arrangement",
-    "BallModel",
-    "BearingHingeParams",
-    "Interfaces",
-    "RaceGeometry",
-    "ball_center",
-    "contact_points",
     "make_bearing_hinge",
-    "race_geometry",
     "without_balls",
 ]
 

@@ -21,7 +21,7 @@ from fe.element import (
     elements_jacobian_det,
     hex8_shape_functions,
 )
-from fe.linalg.sparse import Factorization, LinearSolverBackend, inverse_block
+from fe.linalg.sparse import Factorization, LinearSolverBackend
 from fe.quadrature import gauss_hex
 from mesh.hexmesh import HexMesh
 
@@ -29,14 +29,11 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 __all__ = [
-    "Factorization",
-    "LinearSolverBackend",
     "assemble_body_force",
     "assemble_stiffness",
     "dofs_of",
     "element_coords",
     "element_dofs",
-    "inverse_block",
     "lame_per_element",
     "nodal_average",
     "solve_dirichlet",

@@ -38,7 +38,7 @@ from typing import Any
 
 from cad.errors import DataError, ParameterError, check_range
 from cad.materials import Material
-from fe.hinge.protocol import CycleSettings
+from fe.cycle.protocol import CycleSettings
 from fe.kinds import hinge_kind
 from mesh.settings import MeshSettings
 from model.spec import ModelSpec
@@ -223,7 +223,7 @@ def read_model(path: Path | str, registry: EffectRegistry | None = None) -> Mode
             or a value outside its range (named with the file and section).
     """
     if registry is None:
-        from fe.effects import REGISTRY
+        from fe.effects.registry import REGISTRY
 
         registry = REGISTRY
     path = Path(path)

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from cad.errors import HingelabError, ParameterError
-from fe.hinge.result import CycleResult
+from fe.cycle.result import CycleResult
 from fe.kinds import Built
 from mesh.meshed import MeshedHinge
 from model.spec import (
@@ -192,7 +192,7 @@ class ModelService:
 
         Raises:
             ParameterError: A parameter out of range (named).
-            ConvergenceError: As ``fe.hinge.cycle.run_cycle`` (its ``partial`` kept).
+            ConvergenceError: As ``fe.general.cycle.run_cycle`` (its ``partial`` kept).
         """
         check_spec(spec)
         spec = resolve_structural(spec)

@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from cad.errors import ParameterError, check_range
-from fe.contact import ContactSettings
-from fe.hinge.protocol import CycleSettings
+from fe.contact.state import ContactSettings
+from fe.cycle.protocol import CycleSettings
 from fe.kinds import HingeKind, hinge_kind
 from mesh.settings import MeshSettings
 

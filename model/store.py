@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from cad.errors import DataError
-from fe.contact import ContactState
-from fe.hinge.protocol import CycleSettings
-from fe.hinge.result import CycleResult, Increment
+from fe.contact.state import ContactState
+from fe.cycle.protocol import CycleSettings
+from fe.cycle.result import CycleResult, Increment
 
 logger = logging.getLogger(__name__)
 

@@ -45,15 +45,7 @@ from rsm.query import Extrema, ThresholdRegion, extrema, threshold_region
 from rsm.tables import numeric_column, read_table, xy_from_table
 
 __all__ = [
-    "ETA_THRESHOLD",
-    "GENERAL",
-    "MODIFIED",
-    "PRINTED_CLEARANCE_FOR_THRESHOLD_MM",
-    "PRINTED_REDUCTION_PERCENT",
-    "PRINTED_TABLE7_ETA",
-    "TABLE7_POINT",
     "Check",
-    "HingeCase",
     "HingeComparison",
     "PaperComparison",
     "ReportFiles",
@@ -61,8 +53,6 @@ __all__ = [
     "compare_hinge",
     "compare_with_paper",
     "fit_paper_table",
-    "half_unit",
-    "paper_table_path",
     "report_json",
     "report_markdown",
     "write_report",

@@ -2,8 +2,7 @@
 
 The numbers are transcribed from the paper's text; the sample tables ship as
 ``rsm/data/paper_table*.csv`` (values exactly as printed; the preload column of Table 4 is
-in N although the paper labels it mm). ``rsm.paper`` compares them with a refit and
-re-exports every name here.
+in N although the paper labels it mm). ``rsm.paper`` compares them with a refit.
 """
 
 from __future__ import annotations

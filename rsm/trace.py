@@ -44,6 +44,7 @@ Schema (version 1; ``*_json`` columns hold JSON objects exactly as the study gav
 
 Example:
     >>> import tempfile, pathlib
+    >>> from rsm.trace_store import record_point
     >>> d = pathlib.Path(tempfile.mkdtemp())
     >>> _ = (d / "loop.csv").write_text("u_mm,f_N")
     >>> pid = record_point(d / "trace.sqlite", study="demo", params={"clearance_mm": 0.1},
@@ -63,26 +64,17 @@ from pathlib import Path
 
 from cad.errors import DataError
 from rsm.trace_store import (
-    SCHEMA_VERSION,
-    _open,
-    create,
-    record_fit,
-    record_point,
+    open_trace,
     sha256_of,
 )
 
 __all__ = [
     "ARTIFACT_ORDER",
-    "SCHEMA_VERSION",
     "ArtifactCheck",
     "ArtifactState",
     "PointTrace",
-    "create",
     "export_table",
     "format_trace",
-    "record_fit",
-    "record_point",
-    "sha256_of",
     "trace_as_dict",
     "walk",
 ]
@@ -181,7 +173,7 @@ def walk(db_path: str | Path, point_id: int) -> PointTrace:
         DataError: If the point is not in the database or the file is not a trace.
     """
     db = Path(db_path)
-    with _open(db, readonly=True) as con:
+    with open_trace(db, readonly=True) as con:
         row = con.execute(
             "SELECT p.id, s.name, p.created_utc, p.status, p.error, p.mesh_stats_json, "
             "p.solver_json, p.convergence_json, p.results_json "
@@ -326,7 +318,7 @@ def export_table(
     """
     import csv
 
-    with _open(db_path, readonly=True) as con:
+    with open_trace(db_path, readonly=True) as con:
         row = con.execute("SELECT id FROM studies WHERE name = ?", (study,)).fetchone()
         if row is None:
             names = [r[0] for r in con.execute("SELECT name FROM studies")]

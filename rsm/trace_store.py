@@ -1,7 +1,7 @@
 """Writing a trace: the SQLite schema, opening or creating the store, recording points and fits.
 
-``rsm.trace`` reads the store back (``walk``, ``export_table``) and re-exports the public names here;
-its module docstring describes the schema.
+``rsm.trace`` reads the store back (``walk``, ``export_table``); its module docstring
+describes the schema.
 """
 
 from __future__ import annotations
@@ -109,7 +109,8 @@ def create(db_path: str | Path) -> Path:
 
 
 @contextmanager
-def _open(db_path: str | Path, *, readonly: bool) -> Iterator[sqlite3.Connection]:
+def open_trace(db_path: str | Path, *, readonly: bool) -> Iterator[sqlite3.Connection]:
+    """Open the trace database (read-only, or created if missing) and close it after use."""
     p = Path(db_path)
     if readonly:
         if not p.is_file():
@@ -198,7 +199,7 @@ def record_point(
         files.append((kind, _stored_path(fp, db.parent), sha256_of(fp), fp.stat().st_size))
     res = dict(results or {})
     blobs = [_dumps(d or {}) for d in (mesh_stats, solver, convergence, res)]
-    with _open(db, readonly=False) as con:
+    with open_trace(db, readonly=False) as con:
         sid = _study_id(con, study)
         cur = con.execute(
             "INSERT INTO points(study_id, created_utc, status, error, mesh_stats_json, "
@@ -246,7 +247,7 @@ def record_fit(
         raise DataError(
             f"point_ids has {len(point_ids)} ids but the surface has {surface.n_points} points"
         )
-    with _open(db_path, readonly=False) as con:
+    with open_trace(db_path, readonly=False) as con:
         known = {int(r[0]) for r in con.execute("SELECT id FROM points")}
         missing = [i for i in point_ids if int(i) not in known]
         if missing:

@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``hingelab calibrate``."""
     from model.file import read_model, write_model
     from validation.calibrate import append_ledger, calibrate, plot_ledger
-    from validation.diagnose import DiagnoseSettings
+    from validation.candidate_fit import DiagnoseSettings
     from validation.features import FeatureSettings
     from validation.measurements import read_measurement_set
 

@@ -16,7 +16,7 @@ from studies.pipeline import check_writable_dir, dumps
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add the ``cycle`` subcommand."""
-    from fe.hinge.protocol import DEFAULT_MU
+    from fe.cycle.protocol import DEFAULT_MU
 
     p = sub.add_parser("cycle", help="run the 0 → +Fg → −Fg → +Fg cycle; write loop, η, fields")
     add_geometry_arguments(p)
@@ -85,7 +85,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab cycle``."""
-    from fe.hinge.report import write_loop_csv, write_loop_png
+    from fe.general.report import write_loop_csv, write_loop_png
     from model.service import ModelService
     from model.spec import DesignPoint, describe_point, hinge_at
 
@@ -144,7 +144,7 @@ HINGE_OPTIONS = {
 
 def _spec_from_args(args: argparse.Namespace) -> Any:
     """Return the ModelSpec of a model file or of the options, with the overrides applied."""
-    from fe.hinge.protocol import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from fe.kinds import DEFAULT_KIND, hinge_kind
     from model.service import check_spec
     from model.spec import ModelSpec

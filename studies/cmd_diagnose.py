@@ -43,7 +43,8 @@ def run(args: argparse.Namespace) -> int:
     """Run ``hingelab diagnose``."""
     from cad.errors import ParameterError
     from model.file import read_model
-    from validation.diagnose import DiagnoseSettings, diagnose
+    from validation.candidate_fit import DiagnoseSettings
+    from validation.diagnose import diagnose
     from validation.features import FeatureSettings
     from validation.measurements import read_measurement_set
 

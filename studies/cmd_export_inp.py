@@ -60,8 +60,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab export-inp``."""
-    from fe.effects import REGISTRY
-    from fe.interop.inp import CYCLE, ContactType, DeckSettings, write_deck
+    from fe.effects.registry import REGISTRY
+    from fe.interop.deck_settings import CYCLE, ContactType, DeckSettings
+    from fe.interop.inp import write_deck
     from mesh.build import mesh_hinge
     from model.file import read_model
     from model.spec import DesignPoint, hinge_at

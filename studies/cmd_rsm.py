@@ -171,7 +171,7 @@ def _g(v: float | None) -> str:
 
 def run_fit(args: argparse.Namespace) -> int:
     """Fit, report, plot and optionally record a response surface."""
-    from rsm import trace
+    from rsm import trace_store
     from rsm.plots import plot_all
     from studies.pipeline import check_trace_db, check_writable_dir
 
@@ -191,7 +191,7 @@ def run_fit(args: argparse.Namespace) -> int:
         if len(ids) != s.n_points:
             print("hingelab rsm fit: --trace needs a point_id column in the table", file=sys.stderr)
             return 1
-        rep["trace_fit_id"] = trace.record_fit(
+        rep["trace_fit_id"] = trace_store.record_fit(
             args.trace, surface=s, metrics=m, point_ids=ids, study=args.study
         )
     for w in warns:
@@ -208,6 +208,7 @@ def run_fit(args: argparse.Namespace) -> int:
 def run_paper(args: argparse.Namespace) -> int:
     """Refit the paper's tables, write the comparison report and the plots."""
     from rsm import paper as paper_mod
+    from rsm.paper_printed import ETA_THRESHOLD
     from rsm.plots import plot_all
 
     cmp = paper_mod.compare_with_paper()
@@ -222,7 +223,7 @@ def run_paper(args: argparse.Namespace) -> int:
             h.surface,
             h.metrics,
             args.out,
-            threshold=paper_mod.ETA_THRESHOLD,
+            threshold=ETA_THRESHOLD,
             slice_at=slice_at[h.case.name],
             prefix=f"{h.case.name}_",
         ).items():

@@ -144,7 +144,7 @@ def fit_surface(study: Any, table: Path, db: Path, out: Path, plots: bool) -> di
     """Fit the study's surface to ``table``, record it in the trace, write plots and fit.json."""
     import warnings
 
-    from rsm import trace
+    from rsm import trace_store
     from rsm.metrics import OverfitWarning, fit_metrics
     from rsm.polynomial import fit_response_surface
     from rsm.tables import read_xy
@@ -161,7 +161,7 @@ def fit_surface(study: Any, table: Path, db: Path, out: Path, plots: bool) -> di
     rep = fit_report(s, m, spec.threshold, True)
     rep["warnings"] = [str(w.message) for w in caught]
     ids = [int(lbl.removeprefix("point ")) for lbl in s.labels if lbl.startswith("point ")]
-    rep["trace_fit_id"] = trace.record_fit(
+    rep["trace_fit_id"] = trace_store.record_fit(
         db, surface=s, metrics=m, point_ids=ids, study=study.name
     )
     folder = out / "rsm"

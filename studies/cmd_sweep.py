@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from cad.errors import ParameterError
-from fe.hinge.protocol import DEFAULT_MU
+from fe.cycle.protocol import DEFAULT_MU
 from fe.kinds import DEFAULT_KIND, HingeKind, hinge_kind, kind_names
 from studies.args import add_cluster_arguments, add_mesh_arguments, settings_from_args, with_option
 from studies.options import params_with

@@ -78,7 +78,7 @@ def parse_effects(items: list[str]) -> dict[str, dict[str, float]]:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab synth``."""
-    from fe.effects import validate_effects
+    from fe.effects.registry import validate_effects
     from model.file import read_model
     from validation.synth import (
         SynthSettings,

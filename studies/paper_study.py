@@ -80,7 +80,7 @@ class PaperStudy:
         """
         if not self.quick and not self.points:
             return {name: self._from_file(name) for name in STUDY_FILES}
-        from cad.bearing import Interfaces
+        from cad.bearing_geometry import Interfaces
         from mesh.settings import MeshSettings
         from studies.sweep import SweepSettings
 
@@ -107,7 +107,7 @@ class PaperStudy:
 
     def _from_file(self, name: str) -> Any:
         """One shipped study file's sweep, with this study's μ, interfaces and workers."""
-        from cad.bearing import Interfaces
+        from cad.bearing_geometry import Interfaces
         from studies.study_file import read_study
 
         study = read_study(Path(__file__).parent / "examples" / STUDY_FILES[name])

@@ -44,7 +44,7 @@ from pathlib import Path
 from typing import Any
 
 from cad.errors import ParameterError
-from fe.hinge.protocol import DEFAULT_MU
+from fe.cycle.protocol import DEFAULT_MU
 from fe.kinds import DEFAULT_KIND, hinge_kind
 from mesh.settings import MeshSettings
 from studies.options import params_with
@@ -110,7 +110,7 @@ class SweepSettings:
         if self.model is not None:
             check_spec(self.model)
             return self.model
-        from fe.hinge.protocol import CycleSettings
+        from fe.cycle.protocol import CycleSettings
         from model.spec import ModelSpec
 
         cycle = CycleSettings(
@@ -289,14 +289,14 @@ def run_sweep(
         DataError: If ``out`` cannot be written or its trace is not a hingelab trace
             (checked before anything is meshed).
     """
-    from rsm import trace
+    from rsm import trace, trace_store
     from studies.pipeline import check_trace_db, check_writable_dir
 
     t0 = time.perf_counter()
     check_writable_dir(out, "--out")
     db = check_trace_db(out / "trace.sqlite", "--out")
     plan = plan_sweep(settings, out)
-    trace.create(db)
+    trace_store.create(db)
     spec = settings.spec()
     ids = [pp.point_id for pp in plan if pp.state is PointState.DONE and pp.point_id is not None]
     wanted = (
@@ -309,7 +309,7 @@ def run_sweep(
 
     def store(rec: dict[str, Any]) -> None:
         ids.append(
-            trace.record_point(
+            trace_store.record_point(
                 db,
                 study=rec["study"],
                 params=rec["params"],

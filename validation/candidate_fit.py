@@ -2,7 +2,7 @@
 
 ``fit_candidate`` fits one candidate effect's parameter and runs the false-alarm checks
 (significance, held-out folds, bounds) of steps 3–4 in the ``validation.diagnose`` module
-docstring; ``validation.diagnose`` re-exports the public names here.
+docstring.
 """
 
 from __future__ import annotations
@@ -197,14 +197,14 @@ def design_text(meas: MeasuredFeatures, x: float) -> str:
     return "" if meas.variable is None else meas.variable.text(x)
 
 
-def _eta_without_free_play(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:
+def eta_without_free_play(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:
     """η of model features with the free play taken off δ_max, shape (n_points,).
 
     A stated η (an η-only table, like the paper's, or ``hingelab cycle``'s report)
     excludes the free play: ``η = W / (π Fg (δ_max − 2Δr))``; the loop area W is the same
     with or without the zero-force traverse. A model loop whose δ_max is below Δr never
     crossed the free play (clamped faces that hold the clevis below their slip force,
-    ``fe.hinge.freeplay``): nothing is taken off. Where the faces slide the clevis across,
+    ``fe.general.freeplay``): nothing is taken off. Where the faces slide the clevis across,
     the rectangle of that slide stays in W (it is dissipation).
     """
     elastic = np.array(model, dtype=np.float64, copy=True)
@@ -225,7 +225,7 @@ def residuals(model: FloatArray, meas: MeasuredFeatures) -> FloatArray:
         r = (model - meas.values) / meas.sigma
         eta_rows = meas.eta_rows
         if np.any(eta_rows):
-            eta_model = _eta_without_free_play(model, meas)[eta_rows]
+            eta_model = eta_without_free_play(model, meas)[eta_rows]
             r_eta = (eta_model - meas.values[eta_rows, 1]) / meas.sigma[eta_rows, 1]
             r[eta_rows] = 0.0
             r[eta_rows, 1] = r_eta
@@ -334,7 +334,7 @@ def _scan(
     return best[1], best[2]
 
 
-def _folds(points: Sequence[tuple[float, float]]) -> list[npt.NDArray[np.bool_]]:
+def holdout_folds(points: Sequence[tuple[float, float]]) -> list[npt.NDArray[np.bool_]]:
     """Held-out masks: leave-one-amplitude-rank-out, else leave-one-clearance-out.
 
     Fold k holds the k-th smallest amplitude of every clearance, so every training set
@@ -370,7 +370,7 @@ def _retuned(
     effect fitted alone in an earlier round has absorbed part of the next one, and a
     candidate judged against that frozen value would look weaker than it is.
     """
-    from fe.effects import REGISTRY
+    from fe.effects.registry import REGISTRY
     from validation.evaluate import is_post_only
 
     own = {n: dict(p) for n, p in evaluator.spec.effects.items() if is_post_only(n)}
@@ -398,7 +398,7 @@ def fit_candidate(
     settings: DiagnoseSettings,
 ) -> CandidateFit:
     """Fit one candidate's parameter and judge it (``validation.diagnose`` docstring, steps 3–4)."""
-    from fe.effects import REGISTRY
+    from fe.effects.registry import REGISTRY
 
     spec = REGISTRY[name].params[0]
     grid = _grid(spec.hi, settings)
@@ -436,7 +436,7 @@ def fit_candidate(
     p_value = float(stats.f.sf(f_stat, 1, max(n - 1, 1)))
     significant = p_value < settings.alpha / max(n_tried, 1)
     held_base = held = 0.0
-    for test in _folds(meas.points):
+    for test in holdout_folds(meas.points):
         train = ~test
         _, f_fold = _scan(grid, feats, base_features, meas, train)
         held_base += chi2(base_features, meas, test)

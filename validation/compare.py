@@ -52,8 +52,9 @@ import numpy as np
 from cad.errors import DataError, check_range
 from fe.kinds import hinge_kind
 from validation.features import FeatureSettings, feature_sigma, loop_features
+from validation.loop_files import Loop
 from validation.loops import ProcessedLoop, loop_distance, noise_level, process_loop
-from validation.measurements import Case, Loop, MeasurementSet
+from validation.measurements import Case, MeasurementSet
 
 METRICS = ("disp_at_peak_mm", "W_cycle_Nmm", "eta", "secant_stiffness_N_per_mm", "rms_loop")
 """The errors formed per case, in report order."""

@@ -61,11 +61,11 @@ from validation.candidate_fit import (
     DiagnoseSettings,
     FloatArray,
     MeasuredFeatures,
-    _eta_without_free_play,
-    _folds,  # noqa: F401 (validation.calibrate imports it from here)
     chi2,
     design_text,
+    eta_without_free_play,
     fit_candidate,
+    holdout_folds,  # noqa: F401 (validation.calibrate imports it from here)
     measured_features,
     residuals,
 )
@@ -74,18 +74,10 @@ from validation.features import FEATURES, derived
 from validation.measurements import MeasurementSet
 
 __all__ = [
-    "CandidateFit",
-    "DiagnoseSettings",
     "Diagnosis",
-    "FloatArray",
-    "MeasuredFeatures",
     "Verdict",
-    "chi2",
     "diagnose",
-    "fit_candidate",
-    "measured_features",
     "residual_pattern",
-    "residuals",
 ]
 
 
@@ -104,7 +96,7 @@ def residual_pattern(model: FloatArray, meas: MeasuredFeatures) -> list[str]:
     dd, ed = derived(meas.values, amps_all)
     eta_rows = meas.eta_rows
     ed = np.where(eta_rows, meas.values[:, 1], ed)  # η-only rows state η itself …
-    em = np.where(eta_rows, _eta_without_free_play(model, meas), em)  # … without free play
+    em = np.where(eta_rows, eta_without_free_play(model, meas), em)  # … without free play
     elastic = np.maximum(np.abs(dd - 2.0 * clear_all), 1e-12)  # δ_max without the free play 2Δr
     s_delta_all = meas.sigma[:, 0] / elastic
     s_eta_all = meas.sigma[:, 1] / np.abs(meas.values[:, 1])
@@ -468,7 +460,7 @@ def diagnose(
     """
     import time
 
-    from fe.effects import REGISTRY
+    from fe.effects.registry import REGISTRY
 
     s = settings or DiagnoseSettings()
     t0 = time.perf_counter()

@@ -37,7 +37,8 @@ def _key(effects: Effects) -> tuple[tuple[str, tuple[tuple[str, float], ...]], .
 
 def is_post_only(name: str) -> bool:
     """True when the registry effect ``name`` acts only after the solve (``apply`` is identity)."""
-    from fe.effects import REGISTRY, Effect
+    from fe.effects.base import Effect
+    from fe.effects.registry import REGISTRY
 
     return type(REGISTRY[name]).apply is Effect.apply
 
@@ -127,7 +128,7 @@ class ModelEvaluator:
             mu: Friction coefficient of the runs (None: the model file's). μ changes no
                 operator, so every value reuses the same factorisation and condensation.
         """
-        from fe.effects import post_process, validate_effects
+        from fe.effects.registry import post_process, validate_effects
 
         every = validate_effects({**self.spec.effects, **effects})
         solve = {n: p for n, p in every.items() if not is_post_only(n)}

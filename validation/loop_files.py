@@ -3,8 +3,7 @@
 Units are part of the column name (``force_kN``, ``displacement_um``) and converted to
 N, mm, s on reading; an unknown unit is refused by name. Every malformed entry raises
 ``DataError`` naming the file, the data row (1-based, after the header) or the line, and
-the column. ``validation.measurements`` builds measurement sets from these loops (and
-re-exports the public names here).
+the column. ``validation.measurements`` builds measurement sets from these loops.
 """
 
 from __future__ import annotations
@@ -89,7 +88,7 @@ class Loop:
 
 
 @dataclass(frozen=True)
-class _Table:
+class Table:
     """Rows of a CSV file as strings, with where each row came from."""
 
     path: Path
@@ -98,10 +97,11 @@ class _Table:
     lines: tuple[int, ...]  # 1-based line number of each row in the file
 
     def where(self, i: int, column: str) -> str:
+        """Where a cell is, for messages: file, row (1-based), line and column."""
         return f"{self.path}: row {i + 1} (line {self.lines[i]}), column {column}"
 
 
-def _read_table(path: Path) -> _Table:
+def read_table(path: Path) -> Table:
     """Read a plain CSV: the first non-empty line is the header; blank lines are skipped."""
     if not path.is_file():
         raise DataError(f"{path}: file not found")
@@ -127,11 +127,11 @@ def _read_table(path: Path) -> _Table:
     dupes = sorted({h for h in header if header.count(h) > 1})
     if dupes:
         raise DataError(f"{path}: duplicate column(s) {dupes}")
-    return _Table(path, header, tuple(rows), tuple(lines))
+    return Table(path, header, tuple(rows), tuple(lines))
 
 
 def _find_column(
-    table: _Table, quantity: str, units: Mapping[str, float]
+    table: Table, quantity: str, units: Mapping[str, float]
 ) -> tuple[str, float] | None:
     """Find the column ``<quantity>_<unit>``; return (name, factor to project units) or None.
 
@@ -154,7 +154,7 @@ def _find_column(
     return name, units[unit]
 
 
-def _require_column(table: _Table, quantity: str, units: Mapping[str, float]) -> tuple[str, float]:
+def _require_column(table: Table, quantity: str, units: Mapping[str, float]) -> tuple[str, float]:
     """As ``_find_column``, and refuse a missing column naming the file and the columns."""
     col = _find_column(table, quantity, units)
     if col is None:
@@ -177,18 +177,20 @@ def _finite(text: str, where: str, shown: str | None = None) -> float:
     return value
 
 
-def _number(table: _Table, i: int, column: str) -> float:
+def table_number(table: Table, i: int, column: str) -> float:
+    """The finite number in row ``i``, ``column`` (DataError naming the cell otherwise)."""
     return _finite(table.rows[i][table.header.index(column)], table.where(i, column))
 
 
-def _column(table: _Table, column: str, factor: float) -> FloatArray:
-    return np.array([_number(table, i, column) for i in range(len(table.rows))]) * factor
+def _column(table: Table, column: str, factor: float) -> FloatArray:
+    return np.array([table_number(table, i, column) for i in range(len(table.rows))]) * factor
 
 
-def _optional(table: _Table, i: int, col: tuple[str, float] | None) -> float | None:
+def table_optional(table: Table, i: int, col: tuple[str, float] | None) -> float | None:
+    """The number in row ``i`` of ``col = (column, factor)`` times the factor; None if empty."""
     if col is None or table.rows[i][table.header.index(col[0])] == "":
         return None
-    return _number(table, i, col[0]) * col[1]
+    return table_number(table, i, col[0]) * col[1]
 
 
 # --------------------------------------------------------------------------- loops
@@ -215,7 +217,7 @@ def read_loop_csv(path: Path | str) -> Loop:
         DataError: Missing column, unknown unit, non-numeric or non-finite value,
             fewer than 4 samples.
     """
-    table = _read_table(Path(path))
+    table = read_table(Path(path))
     f_col = _require_column(table, "force", FORCE_UNITS)
     d_col = _require_column(table, "displacement", LENGTH_UNITS)
     t_col = _find_column(table, "time", TIME_UNITS)

@@ -23,7 +23,7 @@ follow; the last one is used). Every loop, measured or computed, goes through
 
    * ``F_max = (F(+peak) − F(−peak))/2``, the half peak-to-peak force (exactly Fg for
      the model);
-   * ``δ_max = (δ(+Fg) − δ(−Fg))/2`` as in ``fe.hinge.cycle`` (the paper's Eq. 1 triangle);
+   * ``δ_max = (δ(+Fg) − δ(−Fg))/2`` as in ``fe.general.cycle`` (the paper's Eq. 1 triangle);
    * ``U_max = ½ F_max δ_max`` and ``η = W_cycle / (2π U_max)``;
    * ``W_cycle = ∮ F dδ`` by the trapezoid rule along the samples, the loop being
      **closed by the straight chord from its last point back to its first** (shoelace
@@ -88,7 +88,7 @@ class Stages:
 
 @dataclass(frozen=True)
 class LoopMetrics:
-    """What ``loop_metrics`` measures on one loop (names as in ``fe.hinge.cycle`` metrics).
+    """What ``loop_metrics`` measures on one loop (names as in ``fe.general.cycle`` metrics).
 
     Attributes:
         f_max_n: Half peak-to-peak force of the last loop [N].

@@ -31,45 +31,25 @@ from typing import Any
 from cad.errors import DataError, ParameterError
 from fe.kinds import DEFAULT_KIND, hinge_kind, kind_names
 from validation.loop_files import (
-    BLUEHILL_COLUMNS,
-    FORCE_UNITS,
-    LENGTH_UNITS,
-    RATE_UNITS,
-    TEMPERATURE_UNITS,
-    TIME_UNITS,
-    FloatArray,
     Loop,
-    _number,
-    _optional,
-    _read_table,
-    _Table,
-    read_bluehill,
-    read_loop_csv,
+    Table,
     read_loop_file,
+    read_table,
+    table_number,
+    table_optional,
 )
 from validation.loops import process_loop, remove_offsets
 
 __all__ = [
     "AMPLITUDE_TOL",
-    "BLUEHILL_COLUMNS",
     "CASE_COLUMNS",
-    "FORCE_UNITS",
-    "LENGTH_UNITS",
     "OPTIONAL_CASE_COLUMNS",
     "OVERSHOOT_TOL",
-    "RATE_UNITS",
-    "TEMPERATURE_UNITS",
-    "TIME_UNITS",
     "Case",
-    "FloatArray",
-    "Loop",
     "MeasurementSet",
     "check_amplitude",
     "design_columns",
-    "read_bluehill",
     "read_eta_table",
-    "read_loop_csv",
-    "read_loop_file",
     "read_measurement_set",
 ]
 
@@ -237,7 +217,7 @@ def read_measurement_set(folder: Path | str) -> MeasurementSet:
         if (root / "eta.csv").is_file():
             return read_eta_table(root / "eta.csv")
         raise DataError(f"{root}: no cases.csv (or eta.csv) in the measurement folder")
-    table = _read_table(root / "cases.csv")
+    table = read_table(root / "cases.csv")
     allowed = CASE_COLUMNS + tuple(design_columns()) + OPTIONAL_CASE_COLUMNS
     missing = [c for c in CASE_COLUMNS if c not in table.header]
     if missing:
@@ -265,7 +245,7 @@ def read_measurement_set(folder: Path | str) -> MeasurementSet:
     return MeasurementSet(tuple(cases), root)
 
 
-def _design_values(table: _Table, i: int, hinge: str) -> dict[str, float]:
+def _design_values(table: Table, i: int, hinge: str) -> dict[str, float]:
     """The kind's design values of row ``i``; another kind's column must be empty or 0."""
     kind = hinge_kind(hinge)
     own = {v.column: v.name for v in kind.design_variables}
@@ -279,7 +259,7 @@ def _design_values(table: _Table, i: int, hinge: str) -> dict[str, float]:
         if column not in table.header:
             continue
         present = table.rows[i][table.header.index(column)].strip() != ""
-        value = _number(table, i, column) if present or column in own else 0.0
+        value = table_number(table, i, column) if present or column in own else 0.0
         if value < 0:
             raise DataError(f"{table.where(i, column)}: must be ≥ 0, got {value:g}")
         if column in own:
@@ -292,17 +272,17 @@ def _design_values(table: _Table, i: int, hinge: str) -> dict[str, float]:
     return values
 
 
-def _hinge_of(table: _Table, i: int, hinge: str) -> str:
+def _hinge_of(table: Table, i: int, hinge: str) -> str:
     try:
         return hinge_kind(hinge).name
     except ParameterError as err:
         raise DataError(f"{table.where(i, 'hinge')}: {err}") from err
 
 
-def _case_from_row(table: _Table, i: int, cell: dict[str, str], root: Path) -> Case:
+def _case_from_row(table: Table, i: int, cell: dict[str, str], root: Path) -> Case:
     hinge = _hinge_of(table, i, cell["hinge"])
     design = _design_values(table, i, hinge)
-    values = {"amplitude_N": _number(table, i, "amplitude_N")}
+    values = {"amplitude_N": table_number(table, i, "amplitude_N")}
     if values["amplitude_N"] <= 0:
         raise DataError(
             f"{table.where(i, 'amplitude_N')}: must be > 0, got {values['amplitude_N']:g}"
@@ -319,12 +299,12 @@ def _case_from_row(table: _Table, i: int, cell: dict[str, str], root: Path) -> C
     process_loop(loop.force_n, loop.displacement_mm, where)  # refuses a record without the stages
     replicate = None
     if cell.get("replicate", ""):
-        r = _number(table, i, "replicate")
+        r = table_number(table, i, "replicate")
         if r != int(r) or r < 0:
             raise DataError(f"{table.where(i, 'replicate')}: must be a whole number ≥ 0, got {r:g}")
         replicate = int(r)
-    rate = _optional(table, i, ("rate_mm_per_min", 1.0) if "rate_mm_per_min" in cell else None)
-    temp = _optional(table, i, ("temperature_C", 1.0) if "temperature_C" in cell else None)
+    rate = table_optional(table, i, ("rate_mm_per_min", 1.0) if "rate_mm_per_min" in cell else None)
+    temp = table_optional(table, i, ("temperature_C", 1.0) if "temperature_C" in cell else None)
     return Case(
         case_id=cell["case_id"],
         hinge=hinge,
@@ -355,7 +335,7 @@ def read_eta_table(path: Path | str, *, hinge: str | None = None) -> Measurement
         DataError: Missing ``amplitude_N``/``eta`` or every design column, a non-numeric
             or non-finite value, η outside (0, 1], a negative design value.
     """
-    table = _read_table(Path(path))
+    table = read_table(Path(path))
     columns = design_columns()
     present = [c for c in columns if c in table.header]
     if hinge is None:
@@ -375,7 +355,7 @@ def read_eta_table(path: Path | str, *, hinge: str | None = None) -> Measurement
         )
     cases = []
     for i in range(len(table.rows)):
-        v = {c: _number(table, i, c) for c in ("amplitude_N", "eta")}
+        v = {c: table_number(table, i, c) for c in ("amplitude_N", "eta")}
         if not 0 < v["eta"] <= 1:
             raise DataError(f"{table.where(i, 'eta')}: η must be in (0, 1], got {v['eta']:g}")
         if v["amplitude_N"] <= 0:
@@ -384,7 +364,7 @@ def read_eta_table(path: Path | str, *, hinge: str | None = None) -> Measurement
             )
         design = {}
         for column in present:
-            x = _number(table, i, column)
+            x = table_number(table, i, column)
             if x < 0:
                 raise DataError(f"{table.where(i, column)}: must be ≥ 0, got {x:g}")
             if column in own:

@@ -33,7 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ParameterError, check_range
-from fe.hinge.cycle import CycleResult
+from fe.cycle.result import CycleResult
 from fe.kinds import DEFAULT_KIND, hinge_kind
 from mesh.settings import MeshSettings
 from model.spec import DesignPoint, ModelSpec, hinge_at
@@ -405,7 +405,7 @@ def _synthesize(
     settings: SynthSettings,
     out: Path,
 ) -> SynthReport:
-    from fe.effects import validate_effects
+    from fe.effects.registry import validate_effects
     from model.service import ModelService
 
     for c in cases:

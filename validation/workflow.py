@@ -13,7 +13,8 @@ import numpy as np
 from cad.errors import DataError, ParameterError
 from model.spec import DesignPoint, ModelSpec, complete_point, describe_point, point_label
 from validation.compare import CompareSettings, Comparison, ModelResult
-from validation.measurements import Case, Loop
+from validation.loop_files import Loop
+from validation.measurements import Case
 
 
 def dumps(obj: Any) -> str:

@@ -22,8 +22,8 @@ import numpy.typing as npt
 
 from cad.errors import ConvergenceError
 from fe.bearing.system import PARAMS, BearingSystem
-from fe.contact import ContactState
 from fe.contact.law import ContactStatus
+from fe.contact.state import ContactState
 
 FloatArray = npt.NDArray[np.float64]
 

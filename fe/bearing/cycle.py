@@ -9,25 +9,14 @@ bonded interfaces and free-rolling balls nothing dissipates, so the loop has no 
 ``fe.cycle.driver.drive``, or runs the meshed-ball cycle (``fe.bearing.full_cycle``) when
 the system asks for ``full`` balls.
 
-The ball law and the preload step are re-exported here (``ball_law``, ``solve_state``,
-``preload_step``, …) for the callers that import them from this module.
+The ball law is ``fe.bearing.balls``, the preload step ``fe.bearing.loading``.
 """
 
 from __future__ import annotations
 
 __all__ = [
-    "GRIP_X",
-    "BallState",
-    "BearingCycle",
     "HertzStep",
-    "PreloadResult",
-    "ball_law",
-    "ball_state_of",
-    "contact_angles",
-    "elastic_energy",
-    "preload_step",
     "run_bearing_cycle",
-    "solve_state",
 ]
 
 import logging
@@ -41,8 +30,6 @@ from cad.bearing_geometry import BallModel
 from fe.bearing.balls import (
     GRIP_X,
     BallState,
-    ball_law,
-    ball_state_of,
     contact_angles,
     elastic_energy,
     grip_stiffness,
@@ -57,10 +44,10 @@ from fe.bearing.loading import (
     with_zero_crossing,
 )
 from fe.bearing.system import BearingSystem
-from fe.contact import ContactState
+from fe.contact.state import ContactState
 from fe.cycle.driver import Recorded, Target, drive
-from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
-from fe.hinge.result import CycleResult, Increment
+from fe.cycle.protocol import CycleSettings, stage_targets, with_cutbacks
+from fe.cycle.result import CycleResult, Increment
 
 logger = logging.getLogger(__name__)
 

@@ -33,11 +33,11 @@ from fe.bearing.balls import REG_FRACTION, ball_law, block_diag
 from fe.bearing.fits import GRIP, N_RIGID, FitSystem
 from fe.bearing.loading import with_zero_crossing
 from fe.bearing.pair import axial_state_from_load, bearing_from_params
-from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
-from fe.contact.state import LinearSolver
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState, IncrementResult, LinearSolver
 from fe.cycle.driver import Recorded, Target, drive
-from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
-from fe.hinge.result import CycleResult, Increment
+from fe.cycle.protocol import CycleSettings, stage_targets, with_cutbacks
+from fe.cycle.result import CycleResult, Increment
 
 logger = logging.getLogger(__name__)
 

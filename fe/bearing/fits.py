@@ -36,13 +36,14 @@ import scipy.sparse as sp
 from cad.bearing_geometry import BearingHingeParams
 from cad.errors import MeshQualityError
 from cad.model import HingeModel, PairKind, SurfacePair
-from fe.assembly import Factorization, dofs_of
+from fe.assembly import dofs_of
 from fe.bearing.balls import ball_law, block_diag
 from fe.bearing.system import BallCounts, BallLines, ball_lines, patch_rows
 from fe.bearing.ties import Ties, assemble_tied, unit_field
 from fe.element import ElementType
-from fe.hinge.geometry import ContactGeometry, contact_geometry, contact_operator
-from fe.hinge.system import BLOCK_RHS, nearest_node, rigid_modes, three_two_one
+from fe.general.geometry import ContactGeometry, contact_geometry, contact_operator
+from fe.general.system import BLOCK_RHS, nearest_node, rigid_modes, three_two_one
+from fe.linalg.sparse import Factorization
 from mesh.hexmesh import HexMesh
 
 logger = logging.getLogger(__name__)
@@ -228,7 +229,7 @@ def build_fit_system(
     held_nodes = np.concatenate(
         [mesh.set_nodes("tang_fixed"), grip, mesh.set_nodes("plate_preload")]
     )
-    # the pin: 3-2-1 supports (as fe.hinge.system); the inner rings: one spin support
+    # the pin: 3-2-1 supports (as fe.general.system); the inner rings: one spin support
     pin = mesh.part_nodes("pin")
     x = np.asarray(mesh.nodes)
     xp = x[pin]

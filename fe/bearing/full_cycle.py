@@ -58,11 +58,11 @@ from fe.bearing.loading import (
 )
 from fe.bearing.meshed_ball import BallStep, MeshedBallLaw, check_converged, rig_maps
 from fe.bearing.system import BearingSystem
-from fe.contact import ContactState
 from fe.contact.law import ContactStatus
+from fe.contact.state import ContactState
 from fe.cycle.driver import Recorded, Target, drive
-from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
-from fe.hinge.result import CycleResult, Increment
+from fe.cycle.protocol import CycleSettings, stage_targets, with_cutbacks
+from fe.cycle.result import CycleResult, Increment
 from mesh.ball_block import BallBlockGrid
 
 logger = logging.getLogger(__name__)

@@ -28,9 +28,9 @@ from fe.bearing.balls import (
     solve_state,
 )
 from fe.bearing.system import BearingSystem
-from fe.contact import ContactState
-from fe.hinge.protocol import CycleSettings
-from fe.hinge.result import CycleResult, Increment
+from fe.contact.state import ContactState
+from fe.cycle.protocol import CycleSettings
+from fe.cycle.result import CycleResult, Increment
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -55,15 +55,9 @@ from cad.errors import ConvergenceError, ParameterError
 from fe.bearing.ball_rig import FrictionRig
 from fe.bearing.one_ball import local_frame
 from fe.bearing.system import BallLines
-from fe.contact import (
-    ContactSettings,
-    ContactState,
-    ContactStatus,
-    IncrementResult,
-    solve_increment,
-)
-from fe.contact.law import coulomb_step
-from fe.contact.state import LinearSolver
+from fe.contact.law import ContactStatus, coulomb_step
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState, IncrementResult, LinearSolver
 
 logger = logging.getLogger(__name__)
 

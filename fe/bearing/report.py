@@ -13,8 +13,8 @@ from cad.errors import ParameterError
 from fe.bearing.balls import ball_law, ball_state_of, contact_angles
 from fe.bearing.fits import FitSystem
 from fe.bearing.system import BearingSystem
-from fe.hinge.report import frames_of, write_series
-from fe.hinge.result import CycleResult
+from fe.cycle.result import CycleResult
+from fe.general.report import frames_of, write_series
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -99,7 +99,7 @@ def increment_fields(system: BearingSystem, result: CycleResult, chosen: list[in
 def write_bearing_series(
     system: BearingSystem, result: CycleResult, folder: Path, *, every: int = 1
 ) -> Path:
-    """ParaView series of a bearing cycle (as ``fe.hinge.report.write_time_series``).
+    """ParaView series of a bearing cycle (as ``fe.general.report.write_time_series``).
 
     Point data besides ``displacement``: ``ball_load`` [N], each ball's Q on the nodes of
     its two raceway patches.

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from cad.bearing import BallModel
-from fe.bearing.cycle import ball_state_of, elastic_energy
+from cad.bearing_geometry import BallModel
+from fe.bearing.balls import ball_state_of, elastic_energy
 from fe.bearing.report import ball_table, fit_ball_table
-from fe.hinge.result import CycleResult
+from fe.cycle.result import CycleResult
 
 
 def model_choices(system: Any, params: Any) -> dict[str, Any]:

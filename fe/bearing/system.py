@@ -40,10 +40,11 @@ import scipy.sparse as sp
 
 from cad.bearing_geometry import BearingHingeParams, contact_points, race_geometry
 from cad.errors import MeshQualityError
-from fe.assembly import Factorization, dofs_of
+from fe.assembly import dofs_of
 from fe.bearing.pair import bearing_from_params, contact_constants
 from fe.bearing.ties import Ties, assemble_tied, unit_field
 from fe.element import ElementType
+from fe.linalg.sparse import Factorization
 from mesh.hexmesh import HexMesh
 
 logger = logging.getLogger(__name__)

@@ -88,35 +88,11 @@ point opens or closes. ``dissipation_i = -p_t·Δw_t >= 0`` is the backward-Eule
 
 Example:
     >>> import numpy as np
-    >>> from fe.contact import ContactSettings, ContactState, solve_increment
+    >>> from fe.contact.solve import solve_increment
+    >>> from fe.contact.state import ContactSettings, ContactState
     >>> W = np.diag([1.0, 2.0, 2.0])            # one point, mm/N
     >>> w_free = np.array([[-1.0, 0.5, 0.0]])   # 1 mm interference, 0.5 mm drag
     >>> res = solve_increment(W, w_free, ContactState.initial(1), ContactSettings(mu=0.2))
     >>> res.state.p.round(12).tolist(), res.n_slip
     ([[1.0, -0.2, 0.0]], 1)
 """
-
-from fe.contact.krylov import KrylovOptions
-from fe.contact.law import ContactStatus
-from fe.contact.solve import RESCUE_FACTORS, solve_increment
-from fe.contact.state import (
-    Complementarity,
-    ContactSettings,
-    ContactState,
-    IncrementResult,
-    LinearSolver,
-    complementarity,
-)
-
-__all__ = [
-    "RESCUE_FACTORS",
-    "Complementarity",
-    "ContactSettings",
-    "ContactState",
-    "ContactStatus",
-    "IncrementResult",
-    "KrylovOptions",
-    "LinearSolver",
-    "complementarity",
-    "solve_increment",
-]

@@ -65,7 +65,7 @@ def wide(entries: int, threads: int | None = None) -> contextlib.AbstractContext
     return limit
 
 
-def _lu_threads_from_env() -> int:
+def lu_threads_from_env() -> int:
     """``HINGELAB_LU_THREADS`` if set (an integer ≥ 1), else min(2, CPU count)."""
     raw = os.environ.get(LU_THREADS_ENV)
     if raw is None:
@@ -93,7 +93,7 @@ def lu_threads(setting: int | None = None) -> int:
     Raises:
         ParameterError: If the environment variable is not an integer ≥ 1.
     """
-    return _lu_threads_from_env() if setting is None else setting
+    return lu_threads_from_env() if setting is None else setting
 
 
 class Factor(NamedTuple):

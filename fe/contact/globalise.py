@@ -13,17 +13,10 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
+from fe.contact.dense import Factor
 from fe.contact.krylov import Workspace, krylov_step
 from fe.contact.law import ContactStatus
-from fe.contact.newton import (
-    Factor,
-    Iterate,
-    Problem,
-    Step,
-    evaluate,
-    newton_step,
-    sparse_product,
-)
+from fe.contact.newton import Iterate, Problem, Step, evaluate, newton_step, sparse_product
 from fe.contact.state import ContactSettings
 
 FloatArray = npt.NDArray[np.float64]
@@ -32,7 +25,7 @@ RESCUE_FACTORS = (0.1, 10.0, 0.01, 100.0, 1e-3, 1e3)
 """Factors applied in turn to ``r`` when Newton stalls (see module docstring)."""
 
 
-def _line_search(
+def line_search(
     prob: Problem,
     it: Iterate,
     step: Step,
@@ -84,7 +77,7 @@ def _direction(
         step = newton_step(prob, it, r, cut, reuse=factor, threads=threads)
     else:
         step = krylov_step(prob, it, r, cut, ws, settings.krylov, threads, tol)
-    new = None if step is None else _line_search(prob, it, step, r, settings)
+    new = None if step is None else line_search(prob, it, step, r, settings)
     if step is None or not step.reused or new is not None:
         return (None if step is None else _Direction(step, int(not step.reused))), new
     # The stale matrix (chord step or preconditioner) was not good enough: refactorise.
@@ -95,7 +88,7 @@ def _direction(
         retry = krylov_step(prob, it, r, cut, ws, settings.krylov, threads, tol)
     if retry is None:
         return None, None
-    return _Direction(retry, 1), _line_search(prob, it, retry, r, settings)
+    return _Direction(retry, 1), line_search(prob, it, retry, r, settings)
 
 
 class _Rescued(NamedTuple):

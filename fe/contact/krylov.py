@@ -35,20 +35,25 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from cad.errors import check_range
-from fe.contact.dense import gather_block, is_subset, lu_solve, wide
+from fe.contact.dense import (
+    Factor,
+    factor_jacobian,
+    gather_block,
+    is_subset,
+    lu_solve,
+    solve_bordered,
+    wide,
+)
 from fe.contact.gmres import gmres
 from fe.contact.law import ContactStatus
 from fe.contact.memo import ArrayMemo
 from fe.contact.newton import (
-    Factor,
     Iterate,
     Linear,
     Problem,
     Step,
-    factor_jacobian,
     form_jacobian,
     linearise,
-    solve_bordered,
     sparse_product,
 )
 

@@ -17,9 +17,9 @@ import scipy.sparse as sp
 
 from fe.contact.dense import LU_THREADED_MIN as LU_THREADED_MIN
 from fe.contact.dense import Factor as Factor
-from fe.contact.dense import _lu_threads_from_env as _lu_threads_from_env
 from fe.contact.dense import factor_jacobian as factor_jacobian
 from fe.contact.dense import lu_threads, runs, wide
+from fe.contact.dense import lu_threads_from_env as lu_threads_from_env
 from fe.contact.dense import solve_bordered as solve_bordered
 from fe.contact.law import ContactStatus, CoulombStep, coulomb_step, per_point, slip_frame
 

@@ -34,7 +34,7 @@ import logging
 import numpy as np
 import numpy.typing as npt
 
-from fe.contact.globalise import Run, _line_search
+from fe.contact.globalise import Run, line_search
 from fe.contact.newton import Iterate, Problem, evaluate, newton_step
 from fe.contact.state import ContactSettings, ProximalOptions
 
@@ -90,7 +90,7 @@ def proximal_loop(
         if step is not None:
             n_factor += 1
             ref = max(merits[-opts.memory :])
-            new = _line_search(prob, it, step, r_base, settings, ref)
+            new = line_search(prob, it, step, r_base, settings, ref)
         if new is None:  # singular or no acceptable step: regularise more
             rejected += 1
             boost = min(boost * opts.grow, boost_max)

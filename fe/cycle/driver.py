@@ -10,7 +10,7 @@ A kind of hinge describes its increment as a ``CycleStep``; ``drive`` runs the p
     return step.result(increments, states, timings)
 
 ``partial()`` builds the result of the increments recorded so far; a step hands it to
-``fe.hinge.protocol.with_cutbacks``, which attaches it to the ``ConvergenceError`` raised
+``fe.cycle.protocol.with_cutbacks``, which attaches it to the ``ConvergenceError`` raised
 when an increment fails after its cut-backs.
 """
 
@@ -24,9 +24,9 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
-from fe.contact import ContactState
-from fe.hinge.protocol import CycleSettings
-from fe.hinge.result import CycleResult, Increment
+from fe.contact.state import ContactState
+from fe.cycle.protocol import CycleSettings
+from fe.cycle.result import CycleResult, Increment
 
 FloatArray = npt.NDArray[np.float64]
 

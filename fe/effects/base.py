@@ -15,10 +15,10 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ParameterError
-from fe.contact import ContactSettings
-from fe.hinge.condensed import Condensed
-from fe.hinge.cycle import CycleSettings
-from fe.hinge.system import HingeSystem
+from fe.contact.state import ContactSettings
+from fe.cycle.protocol import CycleSettings
+from fe.general.condensed import Condensed
+from fe.general.system import HingeSystem
 
 FloatArray = npt.NDArray[np.float64]
 Values = Mapping[str, float]

@@ -21,8 +21,8 @@ from fe.effects.base import (
     add_diagonal,
     map_configs,
 )
-from fe.hinge.condensed import Condensed
-from fe.hinge.faces import FOOTPRINT_RADIUS_RATIO, clamped_faces
+from fe.general.condensed import Condensed
+from fe.general.faces import FOOTPRINT_RADIUS_RATIO, clamped_faces
 
 
 @dataclass(frozen=True)
@@ -238,7 +238,7 @@ class FaceFriction(Effect):
     parallel to the pin, by friction: while they stick the hinge is stiffer and loses
     less; once the load exceeds what they hold (about 2μN), they slip and add
     dissipation. Modelled as extra frictional contact points in the condensed problem
-    (``fe.hinge.faces``): the tang's nodes on both faces inside a washer footprint
+    (``fe.general.faces``): the tang's nodes on both faces inside a washer footprint
     (r ≤ ``FOOTPRINT_RADIUS_RATIO`` × hole radius), each against the arm's inner face
     (``n = ∓e_z``), the same Coulomb μ as the pin, coupled to the hole points through
     the lugs' compliance. Their initial normal displacement is an overlap
@@ -285,7 +285,7 @@ class FaceFriction(Effect):
     inside an increment (first order in the step; the baseline has none, its active set
     is fixed along each half cycle).
 
-    With clearance (``fe.hinge.freeplay``): the clamp is set with the pin centred,
+    With clearance (``fe.general.freeplay``): the clamp is set with the pin centred,
     touching nothing (the faces alone; the arms then bend more freely than around a
     tight pin: overlap 61 µm instead of 24 µm for 300 N on the coarse mesh), and the
     cycle starts centred. The faces hold the clevis wherever it is in the free play

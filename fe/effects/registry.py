@@ -4,7 +4,7 @@ An effect acts in one (or both) of two places, so that none of them needs a new 
 new factorisation:
 
 * ``apply(configs, values, ctx)`` on the condensed system ``w = W p + G α + w0`` of each
-  touching configuration (``fe.hinge.system.Condensed``): it returns new ``Condensed``
+  touching configuration (``fe.general.system.Condensed``): it returns new ``Condensed``
   objects (``dataclasses.replace``), never modifies its input. Interface compliances add
   to the diagonal blocks of ``W``; an interference shifts the normal gap ``w0``; face
   friction appends contact points (condensed with the factorised hinge ``ctx.system``,
@@ -14,7 +14,7 @@ new factorisation:
 
 ``run_cycle_with_effects`` applies the enabled effects to the configurations (condensed
 once per mesh and clearance, reusable for every amplitude and effect), runs
-``fe.hinge.cycle.run_cycle`` and post-processes its increments, so the returned loop and its
+``fe.general.cycle.run_cycle`` and post-processes its increments, so the returned loop and its
 metrics (η, U_max, the energy balance) are consistent.
 
 Fingerprints: each effect's docstring gives a table measured on the coarse test mesh
@@ -46,7 +46,9 @@ import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
 from cad.errors import ParameterError
-from fe.effects.base import Effect, EffectContext, FloatArray, ParamSpec, Values
+from fe.cycle.protocol import CycleSettings
+from fe.cycle.result import CycleResult, Increment
+from fe.effects.base import Effect, EffectContext, FloatArray
 from fe.effects.interfaces import InterfaceFriction
 from fe.effects.models import (
     FaceFriction,
@@ -55,24 +57,14 @@ from fe.effects.models import (
     RoughnessSoftening,
     TangentialCompliance,
 )
-from fe.hinge.condensed import Condensed
-from fe.hinge.cycle import CycleResult, CycleSettings, Increment, configurations, run_cycle
-from fe.hinge.faces import faces_only, unloaded_state
-from fe.hinge.system import GRIP, HingeSystem
+from fe.general.condensed import Condensed
+from fe.general.cycle import configurations, run_cycle
+from fe.general.faces import faces_only, unloaded_state
+from fe.general.system import GRIP, HingeSystem
 
 __all__ = [
     "REGISTRY",
-    "Effect",
-    "EffectContext",
     "EffectCycleResult",
-    "FaceFriction",
-    "FrameCompliance",
-    "InterfaceFriction",
-    "Interference",
-    "ParamSpec",
-    "RoughnessSoftening",
-    "TangentialCompliance",
-    "Values",
     "apply_effects",
     "effect_ranges",
     "post_process",
@@ -203,10 +195,10 @@ def prestressed_zero(cond: Condensed, settings: CycleSettings, pin_centred: bool
     With an initial overlap (``w0_n < 0`` somewhere) the hinge is prestressed before any
     load and the clevis settles at δ₀ ≠ 0 under F = 0. A test machine zeroes its
     displacement there, so the loop is referred to it. Computed as one frictional
-    increment from the unloaded open state to F = 0 (``fe.hinge.faces.unloaded_state``),
+    increment from the unloaded open state to F = 0 (``fe.general.faces.unloaded_state``),
     for any points with an overlap: pin–hole (interference) or clamped faces. With
     clearance (``pin_centred``) the unloaded hinge has the pin centred, touching nothing:
-    the faces alone, δ₀ relative to the centred clevis (``fe.hinge.freeplay``).
+    the faces alone, δ₀ relative to the centred clevis (``fe.general.freeplay``).
     """
     contact = EffectContext.contact_of(settings)
     if pin_centred:
@@ -261,7 +253,7 @@ def run_cycle_with_effects(
 
     Raises:
         ParameterError: An unknown effect or parameter, or a value out of range.
-        ConvergenceError: As ``fe.hinge.cycle.run_cycle`` (its ``partial`` is not post-processed).
+        ConvergenceError: As ``fe.general.cycle.run_cycle`` (its ``partial`` is not post-processed).
     """
     values = validate_effects(effects)
     base = dict(configs) if configs is not None else configurations(system, clearance_mm)

@@ -5,8 +5,7 @@
   pairs (slave = pin side), ties, the grip boundary conditions and the load history
   0 → +Fg → −Fg → +Fg as three ``*STEP`` blocks, all commented;
 * :mod:`fe.interop.deck_settings` — what the deck is asked to be (``DeckSettings``: load,
-  penalty or mortar contact, stick slope, increments, ccx tolerances; re-exported by
-  ``fe.interop.inp``);
+  penalty or mortar contact, stick slope, increments, ccx tolerances);
 * :mod:`fe.interop.ccx` — run CalculiX (``ccx``) on a deck and read its ``.dat`` file
   (the grip displacement and the force through the hinge per increment) and ``.sta`` file
   (increments, iterations, cut-backs).

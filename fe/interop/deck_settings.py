@@ -3,7 +3,6 @@
 ``fe.interop.inp`` writes a meshed hinge as a deck according to a ``DeckSettings``; the
 settings live here so that the writer stays one concept (cards from a mesh) and the
 choices (penalty or mortar contact, stick slope, increments, tolerances) another.
-``fe.interop.inp`` re-exports every name.
 """
 
 from __future__ import annotations

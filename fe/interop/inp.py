@@ -47,10 +47,7 @@ from cad.materials import Material
 from cad.model import FaceRole, NamedFace, PairKind
 from cad.surfaces import Plane
 from fe.interop.deck_settings import (
-    CYCLE,
     EXACT_STICK_SLOPE_MPA_PER_MM,
-    SETTLE_INCREMENT_N,
-    TOUCH_INCREMENT_N,
     ContactType,
     DeckSettings,
 )
@@ -58,13 +55,7 @@ from mesh.hexmesh import HexMesh
 
 __all__ = [
     "C3D8_FACES",
-    "CYCLE",
-    "EXACT_STICK_SLOPE_MPA_PER_MM",
     "GRIP_REF_SET",
-    "SETTLE_INCREMENT_N",
-    "TOUCH_INCREMENT_N",
-    "ContactType",
-    "DeckSettings",
     "deck_text",
     "facet_element_faces",
     "inp_name",

@@ -29,8 +29,8 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 from cad.errors import ParameterError, check_range
 
 if TYPE_CHECKING:
-    from fe.hinge.protocol import CycleSettings
-    from fe.hinge.result import CycleResult
+    from fe.cycle.protocol import CycleSettings
+    from fe.cycle.result import CycleResult
     from mesh.meshed import MeshedHinge
     from mesh.settings import MeshSettings
 

@@ -15,10 +15,11 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from cad.bearing import BallModel, BearingHingeParams, Interfaces, make_bearing_hinge, without_balls
+from cad.bearing import make_bearing_hinge, without_balls
+from cad.bearing_geometry import BallModel, BearingHingeParams, Interfaces
 from cad.errors import ParameterError
-from fe.hinge.protocol import CycleSettings
-from fe.hinge.result import CycleResult
+from fe.cycle.protocol import CycleSettings
+from fe.cycle.result import CycleResult
 from fe.kinds import Built, DesignVariable, Effects, Progress
 from mesh.meshed import build_and_mesh
 from mesh.settings import MeshSettings

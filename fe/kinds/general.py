@@ -11,8 +11,8 @@ from pathlib import Path
 from typing import Any
 
 from cad.general import GeneralHingeParams, make_general_hinge
-from fe.hinge.protocol import CycleSettings
-from fe.hinge.result import CycleResult
+from fe.cycle.protocol import CycleSettings
+from fe.cycle.result import CycleResult
 from fe.kinds import Built, DesignVariable, Effects, Progress
 from mesh.meshed import build_and_mesh
 from mesh.settings import MeshSettings
@@ -36,7 +36,7 @@ CLEARANCE = DesignVariable(
 
 
 class GeneralHinge:
-    """The paper's general hinge (``cad.general``, ``fe.hinge``)."""
+    """The paper's general hinge (``cad.general``, ``fe.general``)."""
 
     name = "general"
     title = "general hinge"
@@ -66,7 +66,7 @@ class GeneralHinge:
         self, params: Any, mesh: MeshSettings, out: Path | None, cache_dir: Path | None
     ) -> Built:
         """Build, mesh and factorise; ``structure`` holds the exact clearance of the mesh."""
-        from fe.hinge.system import build_system
+        from fe.general.system import build_system
 
         meshed = build_and_mesh(make_general_hinge(params), mesh, out)
         system = build_system(meshed.mesh, cache_dir=cache_dir)
@@ -98,7 +98,7 @@ class GeneralHinge:
             )
             built.cache["effect_configs"] = with_effects.base_configs
             return with_effects.result
-        from fe.hinge.cycle import run_cycle
+        from fe.general.cycle import run_cycle
 
         windows: dict[float, Any] = built.cache.setdefault("configs", {})
         result = run_cycle(
@@ -138,7 +138,7 @@ class GeneralHinge:
         self, built: Built, result: CycleResult, folder: Path, every: int
     ) -> Path | None:
         """Displacement, stress, contact pressure and slip as a ParaView series."""
-        from fe.hinge.report import write_time_series
+        from fe.general.report import write_time_series
 
         return write_time_series(built.system, result, folder, every=every)
 

@@ -1,9 +1,5 @@
 """Sparse linear algebra: the SPD direct solver (MKL PARDISO or SciPy SuperLU).
 
 :mod:`fe.linalg.sparse` holds ``Factorization``, ``inverse_block`` (a Schur-complement
-compliance) and ``LinearSolverBackend``; they are re-exported here.
+compliance) and ``LinearSolverBackend``.
 """
-
-from fe.linalg.sparse import Factorization, LinearSolverBackend, inverse_block
-
-__all__ = ["Factorization", "LinearSolverBackend", "inverse_block"]

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from OCP.BRepAdaptor import BRepAdaptor_Surface
 
-from cad.bearing import (
+from cad.bearing import make_bearing_hinge
+from cad.bearing_geometry import (
     Arrangement,
     BearingHingeParams,
     ball_center,
     contact_points,
-    make_bearing_hinge,
     race_geometry,
 )
 from cad.errors import ParameterError

@@ -29,8 +29,8 @@ import numpy as np
 from cad.materials import Material
 from cad.surfaces import Cylinder, Plane
 from fe.assembly import dofs_of
-from fe.hinge.twobody import (
-    Condensed,
+from fe.general.condensed import Condensed
+from fe.general.twobody import (
     TwoBodySystem,
     build_two_body,
     condense,

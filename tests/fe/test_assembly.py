@@ -5,19 +5,17 @@ import scipy.sparse as sp
 from cad.errors import ParameterError, SolverError
 from cad.materials import Material, lame_from_young_poisson
 from fe.assembly import (
-    Factorization,
-    LinearSolverBackend,
     assemble_body_force,
     assemble_stiffness,
     dofs_of,
     element_dofs,
-    inverse_block,
     nodal_average,
     solve_dirichlet,
     strain_energy,
     stress_field,
 )
 from fe.element import ElementType, element_stiffness
+from fe.linalg.sparse import Factorization, LinearSolverBackend, inverse_block
 from mesh.hexmesh import HexMesh
 from tests.helpers import TEST_MATERIAL, box_mesh, merge_meshes
 

@@ -53,7 +53,9 @@ from scipy.integrate import quad
 from threadpoolctl import threadpool_limits
 
 from cad.materials import Material
-from fe.contact import ContactSettings, ContactState, ContactStatus, solve_increment
+from fe.contact.law import ContactStatus
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState
 from tests.fe._contact_meshes import CylinderOnFlat, PressRig, plane_strain_modulus, press_rig
 
 STEEL = Material("steel", 210_000.0, 0.30)

@@ -27,7 +27,8 @@ import numpy as np
 import pytest
 
 from fe.interop.ccx import find_ccx, loop_figures, loop_from_dat, parse_dat, run_ccx
-from fe.interop.inp import GRIP_REF_SET, DeckSettings, write_deck
+from fe.interop.deck_settings import DeckSettings
+from fe.interop.inp import GRIP_REF_SET, write_deck
 from studies.cli import main
 
 pytestmark = pytest.mark.slow
@@ -60,7 +61,7 @@ def ccx():
 
 def model_file(tmp_path, clearance_mm, increments_per_stage=20, **mesh):
     from cad.general import GeneralHingeParams
-    from fe.hinge.cycle import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.file import write_model
     from model.spec import ModelSpec
@@ -90,7 +91,7 @@ def ours(tmp_path, toml, *extra):
 def theirs_mortar(tmp_path, toml, timeout_s=2400.0):
     """Write the model file's deck with ccx's exact mortar contact, run it; return (n_elem, loop)."""
     from cad.general import make_general_hinge
-    from fe.effects import REGISTRY
+    from fe.effects.registry import REGISTRY
     from mesh.build import mesh_hinge
     from model.file import read_model
 

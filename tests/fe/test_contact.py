@@ -8,15 +8,9 @@ import numpy as np
 import pytest
 
 from cad.errors import ConvergenceError, ParameterError
-from fe.contact import (
-    ContactSettings,
-    ContactState,
-    ContactStatus,
-    LinearSolver,
-    complementarity,
-    solve_increment,
-)
-from fe.contact.law import coulomb_step
+from fe.contact.law import ContactStatus, coulomb_step
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState, LinearSolver, complementarity
 
 TOL = ContactSettings().tol
 # Converged quantities are compared at a few hundred times the solver tolerance: the

@@ -7,10 +7,11 @@ import gc
 import numpy as np
 import pytest
 
-from fe import contact
-from fe.contact import ContactSettings, ContactState, KrylovOptions, LinearSolver, solve_increment
 from fe.contact import krylov as contact_krylov
 from fe.contact import newton as contact_newton
+from fe.contact.krylov import KrylovOptions
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState, LinearSolver
 
 
 def random_W(m, seed, coupling=0.15):
@@ -182,7 +183,7 @@ def test_workspace_is_dropped_with_its_operator():
 
 def test_default_is_the_krylov_path():
     assert ContactSettings().linear_solver is LinearSolver.KRYLOV
-    assert contact.LinearSolver.LU.value == "lu"
+    assert LinearSolver.LU.value == "lu"
 
 
 def test_linear_blocks_agree_with_its_sparse_operators():

@@ -8,21 +8,21 @@ import scipy.linalg as sla
 
 from cad.errors import ParameterError
 from fe.contact import newton as contact_newton
-from fe.contact.newton import _lu_threads_from_env, factor_jacobian
+from fe.contact.dense import factor_jacobian, lu_threads_from_env
 
 
 @pytest.mark.parametrize("raw", ["0", "-1", "two", ""])
 def test_bad_lu_thread_count_names_the_variable(monkeypatch, raw):
     monkeypatch.setenv("HINGELAB_LU_THREADS", raw)
     with pytest.raises(ParameterError, match=f"HINGELAB_LU_THREADS.*{raw!r}"):
-        _lu_threads_from_env()
+        lu_threads_from_env()
 
 
 def test_lu_thread_count_from_environment(monkeypatch):
     monkeypatch.setenv("HINGELAB_LU_THREADS", "1")
-    assert _lu_threads_from_env() == 1
+    assert lu_threads_from_env() == 1
     monkeypatch.delenv("HINGELAB_LU_THREADS")
-    assert 1 <= _lu_threads_from_env() <= 2
+    assert 1 <= lu_threads_from_env() <= 2
 
 
 @pytest.mark.parametrize("threads", [1, 2])

@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 
 from cad.errors import ConvergenceError, ParameterError
-from fe.contact import ContactSettings, ContactState, solve_increment
 from fe.contact.law import coulomb_step
 from fe.contact.measure import siconos_error
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState
 
 DATA = Path(__file__).parent / "data" / "fclib"
 SOLVED = 1e-8  # "solved" in the peers' table

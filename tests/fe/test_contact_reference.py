@@ -6,15 +6,11 @@ import numpy as np
 import pytest
 from scipy.optimize import nnls
 
-from fe.contact import (
-    ContactSettings,
-    ContactState,
-    ContactStatus,
-    complementarity,
-    solve_increment,
-)
 from fe.contact import newton as contact_newton
 from fe.contact import state as contact_state
+from fe.contact.law import ContactStatus
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState, complementarity
 
 CMP = 1e3 * ContactSettings().tol  # see tests/fe/test_contact.py
 

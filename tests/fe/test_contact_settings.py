@@ -7,9 +7,9 @@ import pytest
 from threadpoolctl import threadpool_info
 
 from cad.errors import ParameterError
-from fe.contact import ContactSettings, ContactState
 from fe.contact import dense as contact_dense
 from fe.contact.dense import LU_THREADED_MIN, factor_jacobian, lu_threads
+from fe.contact.state import ContactSettings, ContactState
 
 
 def test_setting_wins_over_the_environment(monkeypatch):

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from cad.errors import ParameterError
-from fe.contact import ContactSettings, ContactState, solve_increment
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState
 
 
 def problem(m=12, seed=3):

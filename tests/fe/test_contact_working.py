@@ -7,11 +7,13 @@ import itertools
 import numpy as np
 import pytest
 
-from fe.contact import ContactSettings, ContactState, KrylovOptions, solve_increment
 from fe.contact import krylov as contact_krylov
 from fe.contact import newton as contact_newton
 from fe.contact import solve as contact_solve
 from fe.contact import working as contact_working
+from fe.contact.krylov import KrylovOptions
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState
 from tests.fe.test_contact_krylov import iterate, punch_history, random_W
 
 

@@ -12,8 +12,10 @@ import pytest
 
 from cad.errors import ConvergenceError, ParameterError
 from cad.general import GeneralHingeParams, make_general_hinge
-from fe.hinge.cycle import CycleResult, CycleSettings, grip_force, run_cycle
-from fe.hinge.system import build_system, displacement, support_reaction
+from fe.cycle.protocol import CycleSettings
+from fe.cycle.result import CycleResult
+from fe.general.cycle import grip_force, run_cycle
+from fe.general.system import build_system, displacement, support_reaction
 from mesh.settings import MeshSettings
 
 pytest.importorskip("gmsh")

@@ -24,11 +24,11 @@ import numpy as np
 import pytest
 
 from cad.errors import ConvergenceError
-from fe.contact import ContactState
 from fe.contact.law import ContactStatus
+from fe.contact.state import ContactState
 from fe.cycle.driver import Recorded, Target, drive
-from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
-from fe.hinge.result import CycleResult, Increment
+from fe.cycle.protocol import CycleSettings, stage_targets, with_cutbacks
+from fe.cycle.result import CycleResult, Increment
 
 K = 250.0  # [N/mm]
 FS = 30.0  # [N]

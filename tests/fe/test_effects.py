@@ -15,17 +15,18 @@ import pytest
 
 from cad.errors import ParameterError
 from cad.general import GeneralHingeParams, make_general_hinge
-from fe.effects import (
+from fe.cycle.protocol import CycleSettings
+from fe.effects.base import EffectContext
+from fe.effects.registry import (
     REGISTRY,
-    EffectContext,
     apply_effects,
     effect_ranges,
     post_process,
     run_cycle_with_effects,
     validate_effects,
 )
-from fe.hinge.cycle import CycleSettings, configurations, run_cycle
-from fe.hinge.system import build_system
+from fe.general.cycle import configurations, run_cycle
+from fe.general.system import build_system
 from mesh.settings import MeshSettings
 
 pytest.importorskip("gmsh")
@@ -212,7 +213,7 @@ def face_400(tight):
 
 def test_face_friction_clamp_equals_the_parameter(tight, face_400):
     """At F = 0 (the prestressed zero's state) each face carries the clamp force."""
-    from fe.hinge.faces import face_normal_forces, unloaded_state
+    from fe.general.faces import face_normal_forces, unloaded_state
 
     cond = face_400.result.configs[1]
     state = unloaded_state(cond, EffectContext(tight[0], settings()).contact())
@@ -234,7 +235,7 @@ def test_face_friction_sticks_at_low_force_and_stiffens(face_100, tight):
 
 
 def test_face_friction_closes_the_energy_balance_and_the_pin_floats(face_400, tight):
-    from fe.hinge.system import displacement, support_reaction
+    from fe.general.system import displacement, support_reaction
 
     system, _ = tight
     m = face_400.metrics()
@@ -376,7 +377,7 @@ def test_docstring_fingerprints_are_measured():
 
 
 def test_result_is_a_cycle_result_with_consistent_metrics(tight):
-    from fe.hinge.cycle import CycleResult
+    from fe.cycle.result import CycleResult
 
     system, configs = tight
     r = run_cycle_with_effects(

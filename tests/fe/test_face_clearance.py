@@ -1,4 +1,4 @@
-"""Face friction with clearance: the free play crossed by sliding clamped faces (fe.hinge.freeplay).
+"""Face friction with clearance: the free play crossed by sliding clamped faces (fe.general.freeplay).
 
 Coarse mesh, Δr = 0.1 mm, 6 increments per stage, the default clamp (300 N per face,
 μ = 0.2: the faces let go near 2μN = 120 N).
@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 
 from cad.general import GeneralHingeParams, make_general_hinge
-from fe.effects import REGISTRY, run_cycle_with_effects
-from fe.hinge.crossing import face_mask
-from fe.hinge.cycle import CycleSettings, configurations, run_cycle
-from fe.hinge.faces import face_normal_forces
-from fe.hinge.system import build_system
+from fe.cycle.protocol import CycleSettings
+from fe.effects.registry import REGISTRY, run_cycle_with_effects
+from fe.general.crossing import face_mask
+from fe.general.cycle import configurations, run_cycle
+from fe.general.faces import face_normal_forces
+from fe.general.system import build_system
 from mesh.settings import MeshSettings
 
 pytest.importorskip("gmsh")
@@ -191,7 +192,7 @@ def test_held_clevis_keeps_the_pin_centred_inside_a_contact_window(loose):
 def test_loop_files_of_a_sliding_cycle(slid, tmp_path):
     """The loop CSV with the free play is the grips' path; the figure is drawn on it."""
     pytest.importorskip("matplotlib")
-    from fe.hinge.report import write_loop_csv, write_loop_png
+    from fe.general.report import write_loop_csv, write_loop_png
 
     csv_path = write_loop_csv(slid.result, tmp_path / "loop.csv", with_free_play=True)
     rows = csv_path.read_text().splitlines()

@@ -13,9 +13,10 @@ import pytest
 from cad.errors import ParameterError
 from cad.general import GeneralHingeParams, make_general_hinge
 from fe.assembly import dofs_of
-from fe.contact import ContactSettings
-from fe.hinge.cycle import CycleSettings, configurations, run_cycle
-from fe.hinge.faces import (
+from fe.contact.state import ContactSettings
+from fe.cycle.protocol import CycleSettings
+from fe.general.cycle import configurations, run_cycle
+from fe.general.faces import (
     FACE_PAIR_CODE,
     FOOTPRINT_RADIUS_RATIO,
     clamped_faces,
@@ -24,7 +25,7 @@ from fe.hinge.faces import (
     face_normal_forces,
     unloaded_state,
 )
-from fe.hinge.system import build_system
+from fe.general.system import build_system
 from mesh.settings import MeshSettings
 
 pytest.importorskip("gmsh")
@@ -149,7 +150,7 @@ def test_friction_changes_the_overlap_a_clamp_needs(tight):
 def test_calibration_is_made_once_per_configuration_and_mu(tight, monkeypatch):
     """The unit-overlap solve does not depend on the clamp force: a fit over clamp values
     (or a run over amplitudes) must not repeat it; another μ or configuration must."""
-    import fe.hinge.faces as fc
+    import fe.general.faces as fc
 
     system, cond = tight
     calls = []

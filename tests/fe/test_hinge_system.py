@@ -8,7 +8,7 @@ import pytest
 from cad.errors import ParameterError
 from cad.general import GeneralHingeParams, make_general_hinge
 from cad.surfaces import Cylinder
-from fe.hinge.geometry import closest_point, contact_geometry
+from fe.general.geometry import closest_point, contact_geometry
 
 pytest.importorskip("gmsh")
 from mesh.build import mesh_hinge
@@ -57,7 +57,7 @@ def test_gaps_are_exact_and_projections_land_on_the_master():
 
 
 def test_compliance_cache_is_keyed_by_mesh_content(tmp_path):
-    from fe.hinge.system import build_system
+    from fe.general.system import build_system
 
     settings = MeshSettings.coarse()
     mesh, _ = mesh_hinge(make_general_hinge(GeneralHingeParams()), settings)
@@ -80,8 +80,9 @@ def test_low_memory_mode_holds_one_factor_and_recovers_the_same_fields():
     # low-memory mode each factor is released after its solve. The fields must not change.
     import dataclasses
 
-    from fe.hinge.cycle import CycleSettings, run_cycle
-    from fe.hinge.system import build_system, displacement, displacements
+    from fe.cycle.protocol import CycleSettings
+    from fe.general.cycle import run_cycle
+    from fe.general.system import build_system, displacement, displacements
 
     settings = MeshSettings.coarse()
     mesh, _ = mesh_hinge(make_general_hinge(GeneralHingeParams()), settings)
@@ -117,7 +118,7 @@ def test_delassus_by_row_blocks_is_the_whole_matrix_formula_and_allocates_one_w(
     expression held about four W-sized arrays)."""
     import tracemalloc
 
-    import fe.hinge.system as hinge_system
+    import fe.general.system as hinge_system
 
     rng = np.random.default_rng(5)
     m, b_s, b_m = 400, 1100, 700
@@ -156,8 +157,8 @@ def test_condensation_by_pin_solves_is_the_compliance_condensation(
     compliance blocks to round-off, is exactly symmetric, and leaves no compliance block
     in the system (what lets a zero-clearance level 2 fit); the pin factor is released in
     low-memory mode."""
-    import fe.hinge.system as hinge_system
-    from fe.hinge.system import build_system, condense
+    import fe.general.system as hinge_system
+    from fe.general.system import build_system, condense
 
     mesh, geo, _ = coarse_zero_clearance
     reference = condense(build_system(mesh), geo).W
@@ -183,9 +184,9 @@ def test_condensation_takes_the_path_that_fits_or_refuses_before_allocating(
     ResourceError naming the sizes and both estimates before the first dense solve (a
     zero-clearance level 2 would otherwise be killed minutes later). HINGELAB_MEMORY_CHECK=0
     lets it run; kept compliances are not counted."""
-    import fe.hinge.system as hinge_system
+    import fe.general.system as hinge_system
     from cad.errors import ResourceError
-    from fe.hinge.system import (
+    from fe.general.system import (
         CondensePath,
         build_system,
         condense,

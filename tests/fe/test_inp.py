@@ -26,15 +26,17 @@ from fe.interop.ccx import (
     parse_sta,
     run_ccx,
 )
-from fe.interop.inp import (
-    C3D8_FACES,
+from fe.interop.deck_settings import (
     CYCLE,
     EXACT_STICK_SLOPE_MPA_PER_MM,
-    GRIP_REF_SET,
     SETTLE_INCREMENT_N,
     TOUCH_INCREMENT_N,
     ContactType,
     DeckSettings,
+)
+from fe.interop.inp import (
+    C3D8_FACES,
+    GRIP_REF_SET,
     deck_text,
     facet_element_faces,
     inp_name,

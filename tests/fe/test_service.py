@@ -9,7 +9,7 @@ import pytest
 
 from cad.errors import ParameterError
 from cad.general import GeneralHingeParams
-from fe.hinge.protocol import CycleSettings
+from fe.cycle.protocol import CycleSettings
 from fe.kinds import hinge_kind
 from mesh.settings import MeshSettings
 from model.service import ModelService
@@ -85,7 +85,7 @@ def test_a_failing_point_is_recorded_and_the_others_go_on(tmp_path, monkeypatch)
 
 
 def test_run_cycle_refuses_a_clearance_the_mesh_does_not_have():
-    from fe.hinge.cycle import run_cycle
+    from fe.general.cycle import run_cycle
 
     service = ModelService()
     prepared = service.prepare(_spec(), DesignPoint(300.0, {"clearance_mm": 0.1}))
@@ -100,7 +100,7 @@ def test_design_point_range_is_checked():
 
 
 def _bearing_spec():
-    from cad.bearing import BearingHingeParams
+    from cad.bearing_geometry import BearingHingeParams
 
     mesh = hinge_kind("bearing").mesh_settings(
         size_mm=4.0, contact_size_mm=0.8, part_sizes_mm=(("ring", 1.2),)
@@ -130,7 +130,7 @@ def test_bearing_preloads_share_one_geometry_and_round_trip_the_store(tmp_path):
 
 
 def test_bearing_point_and_spec_mistakes_are_named():
-    from cad.bearing import BallModel, BearingHingeParams, Interfaces
+    from cad.bearing_geometry import BallModel, BearingHingeParams, Interfaces
 
     spec = _bearing_spec()
     with pytest.raises(

@@ -120,7 +120,8 @@ def test_bad_band_depth_is_refused(value):
 def test_bearing_pin_is_not_banded():
     # The bearing hinge's pin is bonded into its rings and the clevis, not in contact:
     # it has no contact circle to lie under, so no band.
-    from cad.bearing import BearingHingeParams, make_bearing_hinge
+    from cad.bearing import make_bearing_hinge
+    from cad.bearing_geometry import BearingHingeParams
     from mesh.build import _pin_band
 
     bearing = make_bearing_hinge(BearingHingeParams())

@@ -154,7 +154,8 @@ def test_ring_volume_and_refined_groove_patch():
 
 @pytest.mark.parametrize("race", ["inner", "outer"])
 def test_bearing_ball_contact_caps_select_outward_facets(race):
-    from cad.bearing import BearingHingeParams, contact_points, make_bearing_hinge
+    from cad.bearing import make_bearing_hinge
+    from cad.bearing_geometry import BearingHingeParams, contact_points
 
     model = make_bearing_hinge(BearingHingeParams())
     face = model.faces[f"ball_0_0_{race}"]

@@ -9,7 +9,7 @@ from rsm.design import (
     full_factorial,
     latin_hypercube,
 )
-from rsm.paper import GENERAL, paper_table_path
+from rsm.paper_printed import GENERAL, paper_table_path
 from rsm.tables import read_xy
 
 

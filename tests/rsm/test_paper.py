@@ -6,15 +6,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from rsm.paper import (
-    GENERAL,
-    MODIFIED,
-    compare_with_paper,
-    fit_paper_table,
-    half_unit,
-    paper_table_path,
-    write_report,
-)
+from rsm.paper import compare_with_paper, fit_paper_table, write_report
+from rsm.paper_printed import GENERAL, MODIFIED, half_unit, paper_table_path
 from rsm.polynomial import design_matrix, predict
 from rsm.query import ResponseLimit, best_design, extrema, threshold_region
 from rsm.tables import numeric_column, read_table

@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 
 from rsm.metrics import fit_metrics
-from rsm.paper import GENERAL, fit_paper_table
+from rsm.paper import fit_paper_table
+from rsm.paper_printed import GENERAL
 from rsm.plots import axis_label, plot_all, plot_contour
 from rsm.polynomial import fit_response_surface
 

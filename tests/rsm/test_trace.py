@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from cad.errors import DataError, ParameterError
-from rsm import trace
+from rsm import trace, trace_store
 from rsm.metrics import fit_metrics
 from rsm.polynomial import fit_response_surface
 from rsm.tables import read_xy
@@ -23,7 +23,7 @@ def _run(tmp_path, k, clearance, force, eta):
     ]:
         (d / name).write_text(f"{kind} of point {k}\n", encoding="utf-8")
         files[kind] = d / name
-    return trace.record_point(
+    return trace_store.record_point(
         tmp_path / "trace.sqlite",
         study="general-5x5",
         params={"clearance_mm": clearance, "amplitude_N": force},
@@ -75,7 +75,7 @@ def test_whole_study_folder_can_move(tmp_path):
 
 def test_failed_point_and_validation(tmp_path):
     db = tmp_path / "trace.sqlite"
-    pid = trace.record_point(
+    pid = trace_store.record_point(
         db,
         study="s",
         params={"clearance_mm": 0.4},
@@ -86,9 +86,9 @@ def test_failed_point_and_validation(tmp_path):
     assert t.status == "failed"
     assert "increment 12" in (t.error or "")
     with pytest.raises(ParameterError, match="error must be given"):
-        trace.record_point(db, study="s", params={"a": 1.0}, status="failed")
+        trace_store.record_point(db, study="s", params={"a": 1.0}, status="failed")
     with pytest.raises(FileNotFoundError, match="artifact 'step'"):
-        trace.record_point(
+        trace_store.record_point(
             db, study="s", params={"a": 1.0}, artifacts={"step": tmp_path / "no.step"}
         )
 
@@ -113,13 +113,13 @@ def test_export_fit_and_record_fit(tmp_path):
     xy = read_xy(table, ["clearance_mm", "amplitude_N"], "eta")
     assert xy.labels == tuple(f"point {i}" for i in ids)
     s = fit_response_surface(xy.x, xy.y, 2, x_names=xy.x_names, labels=xy.labels)
-    fid = trace.record_fit(db, surface=s, metrics=fit_metrics(s, warn=False), point_ids=ids)
+    fid = trace_store.record_fit(db, surface=s, metrics=fit_metrics(s, warn=False), point_ids=ids)
     assert trace.walk(db, ids[3]).fit_ids == (fid,)
     with sqlite3.connect(db) as con:
         n = con.execute("SELECT count(*) FROM fit_points WHERE fit_id = ?", (fid,)).fetchone()[0]
     assert n == len(ids)
     with pytest.raises(DataError, match="not in the trace"):
-        trace.record_fit(
+        trace_store.record_fit(
             db, surface=s, metrics=fit_metrics(s, warn=False), point_ids=[*ids[:-1], 999]
         )
     assert np.isfinite(s.condition_number)

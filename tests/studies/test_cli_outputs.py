@@ -137,14 +137,14 @@ def test_sweep_refuses_a_foreign_trace_before_meshing(tmp_path, capsys):
 
 
 def test_trace_schema_and_changed_file(tmp_path, capsys):
-    from rsm import trace
+    from rsm import trace_store
 
     assert main(["trace", "--schema"]) == 0
     assert "points(id INTEGER PRIMARY KEY" in capsys.readouterr().out
     loop = tmp_path / "loop.csv"
     loop.write_text("force_N,displacement_mm\n0,0\n")
     db = tmp_path / "trace.sqlite"
-    pid = trace.record_point(
+    pid = trace_store.record_point(
         db, study="t", params={"clearance_mm": 0.0}, artifacts={"loop_csv": loop}
     )
     assert main(["trace", str(db), str(pid)]) == 0
@@ -161,7 +161,7 @@ def test_missing_trace_is_one_line(tmp_path, capsys):
 
 def _model_and_data(tmp_path: Path) -> tuple[Path, Path]:
     from cad.general import GeneralHingeParams
-    from fe.hinge.protocol import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.file import write_model
     from model.spec import ModelSpec

@@ -19,7 +19,7 @@ AMPLITUDES = {"c200": (200.0, 1.0), "c400": (400.0, 1.0), "c300_bad": (300.0, 1.
 
 def _model_file(path):
     from cad.general import GeneralHingeParams
-    from fe.hinge.cycle import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.file import write_model
     from model.spec import ModelSpec
@@ -137,7 +137,8 @@ def test_table_printed_from_the_written_files(dataset, capsys):
     """The text table, formed from the model loops the CLI run wrote (no second FE run)."""
     from studies.cmd_compare import format_table
     from validation.compare import ModelResult, compare
-    from validation.measurements import read_loop_csv, read_measurement_set
+    from validation.loop_files import read_loop_csv
+    from validation.measurements import read_measurement_set
 
     root, _, data = dataset
     loops = root / "out" / "model_loops"

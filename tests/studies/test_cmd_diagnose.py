@@ -89,7 +89,7 @@ def test_diagnose_prints_json(model_path, tmp_path, stubs, capsys):
 
 
 def test_calibrate_writes_model_ledger_and_plot(model_path, tmp_path, stubs, capsys):
-    from fe.effects import REGISTRY
+    from fe.effects.registry import REGISTRY
     from model.file import read_model
 
     out = tmp_path / "cal"

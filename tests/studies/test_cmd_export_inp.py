@@ -7,7 +7,7 @@ import json
 import pytest
 
 from cad.general import GeneralHingeParams
-from fe.hinge.cycle import CycleSettings
+from fe.cycle.protocol import CycleSettings
 from mesh.settings import MeshSettings
 from model.file import write_model
 from model.spec import ModelSpec

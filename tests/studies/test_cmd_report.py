@@ -209,13 +209,13 @@ def _other_folders(root: Path) -> dict[str, Path]:
 
 def _sweep_folder(d: Path) -> Path:
     """A sweep's layout: one point in the trace, its loop picture and STEP file."""
-    from rsm import trace
+    from rsm import trace_store
 
     loop = _png(d / "points" / "c0.000_F200" / "loop.png")
     step = d / "geometry" / "c0.000" / "hinge.step"
     step.parent.mkdir(parents=True)
     step.write_text("ISO-10303-21;\n")
-    trace.record_point(
+    trace_store.record_point(
         d / "trace.sqlite",
         study="demo",
         params={"clearance_mm": 0.0, "amplitude_N": 200.0},

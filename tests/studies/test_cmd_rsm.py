@@ -3,7 +3,7 @@ import shutil
 
 import pytest
 
-from rsm.paper import GENERAL, paper_table_path
+from rsm.paper_printed import GENERAL, paper_table_path
 from studies.cli import main
 
 

@@ -32,7 +32,7 @@ def _synth_registered():
 @pytest.fixture(scope="module")
 def model_path(tmp_path_factory):
     from cad.general import GeneralHingeParams
-    from fe.hinge.cycle import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.file import write_model
     from model.spec import ModelSpec

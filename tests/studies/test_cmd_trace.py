@@ -1,6 +1,6 @@
 import json
 
-from rsm import trace
+from rsm import trace_store
 from studies.cli import main
 
 
@@ -13,7 +13,7 @@ def _point(tmp_path):
         f.write_text(kind, encoding="utf-8")
         arts[kind] = f
     db = tmp_path / "study" / "trace.sqlite"
-    pid = trace.record_point(
+    pid = trace_store.record_point(
         db,
         study="demo",
         params={"clearance_mm": 0.2, "amplitude_N": 300.0},

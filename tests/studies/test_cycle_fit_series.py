@@ -10,8 +10,8 @@ import meshio
 import numpy as np
 import pytest
 
-from cad.bearing import BearingHingeParams, Interfaces
-from fe.hinge.protocol import CycleSettings
+from cad.bearing_geometry import BearingHingeParams, Interfaces
+from fe.cycle.protocol import CycleSettings
 from fe.kinds import hinge_kind
 from model.file import write_model
 from model.spec import ModelSpec

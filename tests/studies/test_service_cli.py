@@ -42,7 +42,7 @@ def test_compare_reads_a_model_file_with_effects(tmp_path, capsys):
     import dataclasses
 
     from cad.general import GeneralHingeParams
-    from fe.hinge.cycle import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.file import write_model
     from model.spec import ModelSpec

@@ -11,7 +11,8 @@ import pytest
 
 from cad.errors import DataError
 from validation.compare import CompareSettings, ModelResult, Uncertainty, compare
-from validation.measurements import Case, Loop, MeasurementSet
+from validation.loop_files import Loop
+from validation.measurements import Case, MeasurementSet
 from validation.plots import write_comparison_plots
 
 PHI = 0.08

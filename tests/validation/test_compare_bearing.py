@@ -18,8 +18,8 @@ DATA_MESH = {"size_mm": 3.5, "contact_size_mm": 0.7, "part_sizes_mm": (("ring", 
 
 
 def _spec(mesh: dict, increments: int):  # type: ignore[no-untyped-def]
-    from cad.bearing import BearingHingeParams, Interfaces
-    from fe.hinge.protocol import CycleSettings
+    from cad.bearing_geometry import BearingHingeParams, Interfaces
+    from fe.cycle.protocol import CycleSettings
     from model.spec import ModelSpec
 
     return ModelSpec(
@@ -113,7 +113,7 @@ def test_calibrate_recovers_mu_of_the_fits_from_eta_only_bearing_data(tmp_path, 
 
 def _bonded(mesh: dict, increments: int):  # type: ignore[no-untyped-def]
     spec = _spec(mesh, increments)
-    from cad.bearing import BearingHingeParams
+    from cad.bearing_geometry import BearingHingeParams
 
     return dataclasses.replace(spec, hinge=BearingHingeParams())
 
@@ -124,7 +124,8 @@ def test_diagnose_names_a_frame_compliance_hidden_in_bearing_loops(tmp_path):
     the effects that act on a loop are candidates for the bearing hinge."""
     from model.service import ModelService
     from model.spec import DesignPoint
-    from validation.diagnose import DiagnoseSettings, diagnose
+    from validation.candidate_fit import DiagnoseSettings
+    from validation.diagnose import diagnose
     from validation.measurements import read_measurement_set
 
     service = ModelService()

@@ -8,13 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from validation.diagnose import (
-    CandidateFit,
-    DiagnoseSettings,
-    MeasuredFeatures,
-    _verdict,
-    residual_pattern,
-)
+from validation.candidate_fit import CandidateFit, DiagnoseSettings, MeasuredFeatures
+from validation.diagnose import _verdict, residual_pattern
 from validation.features import loop_features, noise_sigma
 from validation.loops import process_loop
 
@@ -105,7 +100,7 @@ def _eta_table(tmp_path, rows):
 
 
 def test_eta_only_rows_count_once_and_compare_eta(tmp_path):
-    from validation.diagnose import chi2, measured_features, residuals
+    from validation.candidate_fit import chi2, measured_features, residuals
     from validation.features import FeatureSettings
 
     data = _eta_table(tmp_path, [(0.0, 100.0, 0.02), (0.0, 400.0, 0.02), (0.0, 400.0, 0.024)])
@@ -131,7 +126,7 @@ def test_eta_only_rows_count_once_and_compare_eta(tmp_path):
 
 def test_eta_only_residual_takes_the_free_play_off(tmp_path):
     """A stated η excludes the free play; the model features include it in δ_max (2Δr)."""
-    from validation.diagnose import measured_features, residuals
+    from validation.candidate_fit import measured_features, residuals
     from validation.features import FeatureSettings
 
     meas = measured_features(_eta_table(tmp_path, [(0.1, 400.0, 0.02)]), FeatureSettings())
@@ -143,7 +138,7 @@ def test_eta_only_residual_takes_the_free_play_off(tmp_path):
 
 def test_eta_only_tie_asks_for_the_loop_that_separates(tmp_path):
     data = _eta_table(tmp_path, [(0.0, 100.0, 0.01), (0.0, 400.0, 0.01)])
-    from validation.diagnose import measured_features
+    from validation.candidate_fit import measured_features
     from validation.features import FeatureSettings
 
     meas = measured_features(data, FeatureSettings())
@@ -175,7 +170,7 @@ FAST = DiagnoseSettings(
 def spec():
     pytest.importorskip("gmsh")
     from cad.general import GeneralHingeParams
-    from fe.hinge.cycle import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec
 
@@ -192,9 +187,9 @@ def test_eta_judged_without_free_play_is_the_cycles_reported_eta(spec, tmp_path)
     # (δ_max − 2Δr of the machine path). That must be the η `hingelab cycle` reports
     # (its loop without the free play); a different δ or a 4Δr slip would bias every
     # η-only diagnosis with clearance.
-    from fe.effects import run_cycle_with_effects
+    from fe.effects.registry import run_cycle_with_effects
     from model.spec import DesignPoint
-    from validation.diagnose import _eta_without_free_play, measured_features
+    from validation.candidate_fit import eta_without_free_play, measured_features
     from validation.evaluate import ModelEvaluator
     from validation.features import FeatureSettings, derived
 
@@ -202,7 +197,7 @@ def test_eta_judged_without_free_play_is_the_cycles_reported_eta(spec, tmp_path)
     meas = measured_features(_eta_table(tmp_path, [(*point, 0.001)]), FeatureSettings())
     evaluator = ModelEvaluator(spec, [point])
     features = evaluator.features({})
-    judged = float(_eta_without_free_play(features, meas)[0])
+    judged = float(eta_without_free_play(features, meas)[0])
     system = evaluator.service.prepare(
         spec, DesignPoint(point[1], {"clearance_mm": point[0]})
     ).system
@@ -384,10 +379,12 @@ def test_eta_only_cases_cannot_tell_a_series_spring_from_shear_compliance(spec, 
 
 
 def test_held_out_folds_keep_every_clearance_in_training():
-    from validation.diagnose import _folds
+    from validation.candidate_fit import holdout_folds
 
     pts = [(0.0, 100.0), (0.0, 400.0), (0.1, 100.0), (0.1, 400.0)]
-    folds = _folds(pts)
+    folds = holdout_folds(pts)
     assert [f.tolist() for f in folds] == [[True, False, True, False], [False, True, False, True]]
-    single = _folds([(0.0, 100.0), (0.1, 100.0)])  # one amplitude each: leave a clearance out
+    single = holdout_folds(
+        [(0.0, 100.0), (0.1, 100.0)]
+    )  # one amplitude each: leave a clearance out
     assert [f.tolist() for f in single] == [[True, False], [False, True]]

@@ -9,14 +9,9 @@ import numpy as np
 import pytest
 
 from cad.errors import DataError
+from validation.loop_files import read_bluehill, read_loop_csv, read_loop_file
 from validation.loops import process_loop
-from validation.measurements import (
-    read_bluehill,
-    read_eta_table,
-    read_loop_csv,
-    read_loop_file,
-    read_measurement_set,
-)
+from validation.measurements import read_eta_table, read_measurement_set
 
 BLUEHILL = Path(__file__).parent / "data" / "bluehill_hinge_300N.csv"
 HEADER = "case_id,hinge,clearance_mm,preload_N,amplitude_N,loop_file"

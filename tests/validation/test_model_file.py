@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import pytest
 
-from cad.bearing import Arrangement, BearingHingeParams
+from cad.bearing_geometry import Arrangement, BearingHingeParams
 from cad.errors import DataError, ParameterError
 from cad.general import GeneralHingeParams
 from cad.materials import Material
-from fe.hinge.cycle import CycleSettings
+from fe.cycle.protocol import CycleSettings
 from mesh.settings import MeshSettings
 from model.file import read_model, write_model
 from model.spec import DesignPoint, ModelSpec, hinge_at

@@ -8,15 +8,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from validation.diagnose import (
-    DiagnoseSettings,
-    MeasuredFeatures,
-    Verdict,
-    _verdict,
-    chi2,
-    residual_pattern,
-    sensitivity,
-)
+from validation.candidate_fit import DiagnoseSettings, MeasuredFeatures, chi2
+from validation.diagnose import Verdict, _verdict, residual_pattern, sensitivity
 
 
 def _design(clearances=(0.0, 0.1, 0.2), amps=(100.0, 200.0, 300.0, 400.0)):

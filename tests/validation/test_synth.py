@@ -8,10 +8,12 @@ import numpy as np
 import pytest
 
 from cad.errors import ParameterError
-from fe.hinge.cycle import CycleResult, CycleSettings, Increment
+from fe.cycle.protocol import CycleSettings
+from fe.cycle.result import CycleResult, Increment
 from mesh.settings import MeshSettings
+from validation.loop_files import Loop
 from validation.loops import process_loop
-from validation.measurements import Loop, check_amplitude
+from validation.measurements import check_amplitude
 from validation.synth import (
     SynthSettings,
     default_design,
@@ -153,7 +155,7 @@ def test_true_model_passes_compare_on_synthetic_data_with_clearance(tmp_path):
     pin, so δ(+Fg) agrees (it was −95 % off when the record jumped 2Δr at its start)."""
     pytest.importorskip("gmsh")
     from cad.general import GeneralHingeParams
-    from fe.hinge.protocol import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec
     from validation.compare import compare
@@ -176,7 +178,7 @@ def test_true_model_passes_compare_on_synthetic_data_with_clearance(tmp_path):
 
 def _coarse_spec():
     from cad.general import GeneralHingeParams
-    from fe.hinge.protocol import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec
 

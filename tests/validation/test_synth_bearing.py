@@ -14,8 +14,8 @@ COARSE = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2
 
 
 def _bonded(increments=8):  # type: ignore[no-untyped-def]
-    from cad.bearing import BearingHingeParams
-    from fe.hinge.protocol import CycleSettings
+    from cad.bearing_geometry import BearingHingeParams
+    from fe.cycle.protocol import CycleSettings
     from model.spec import ModelSpec
 
     return ModelSpec(
@@ -94,7 +94,8 @@ def test_diagnose_names_interface_friction_hidden_in_bearing_data(tmp_path):
     finer mesh, judged against the bonded model (which has no loop): diagnose must name
     interface_friction and fit its μ near 0.3; frame_compliance (which cannot make a loop)
     must not explain them."""
-    from validation.diagnose import DiagnoseSettings, diagnose
+    from validation.candidate_fit import DiagnoseSettings
+    from validation.diagnose import diagnose
     from validation.measurements import read_measurement_set
     from validation.synth import synthesize
 

@@ -16,14 +16,17 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cad.bearing import BearingHingeParams, make_bearing_hinge, without_balls
+from cad.bearing import make_bearing_hinge, without_balls
+from cad.bearing_geometry import BearingHingeParams
 from cad.errors import ConvergenceError, ParameterError
-from fe.bearing.cycle import GRIP_X, ball_law, preload_step, run_bearing_cycle, solve_state
+from fe.bearing.balls import GRIP_X, ball_law, solve_state
+from fe.bearing.cycle import run_bearing_cycle
+from fe.bearing.loading import preload_step
 from fe.bearing.pair import axial_state_from_load, bearing_from_params
 from fe.bearing.rings import pair_from_params, solve_ring
 from fe.bearing.system import BearingSystem, build_bearing_system
-from fe.hinge.protocol import CycleSettings
-from fe.hinge.result import CycleResult
+from fe.cycle.protocol import CycleSettings
+from fe.cycle.result import CycleResult
 from fe.kinds import hinge_kind
 from mesh.build import mesh_hinge
 

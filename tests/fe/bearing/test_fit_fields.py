@@ -11,12 +11,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cad.bearing import BearingHingeParams, make_bearing_hinge, without_balls
+from cad.bearing import make_bearing_hinge, without_balls
+from cad.bearing_geometry import BearingHingeParams
 from fe.bearing.fit_cycle import run_fit_cycle
 from fe.bearing.fits import GRIP, FitSystem, build_fit_system, with_frictional_fits
 from fe.bearing.report import fit_fields
-from fe.hinge.protocol import CycleSettings
-from fe.hinge.result import CycleResult
+from fe.cycle.protocol import CycleSettings
+from fe.cycle.result import CycleResult
 from fe.kinds import hinge_kind
 from mesh.build import mesh_hinge
 

@@ -7,10 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cad.bearing import BearingHingeParams, make_bearing_hinge, without_balls
+from cad.bearing import make_bearing_hinge, without_balls
+from cad.bearing_geometry import BearingHingeParams
 from fe.bearing.fit_cycle import run_fit_cycle
 from fe.bearing.fits import FitSystem, build_fit_system, with_frictional_fits
-from fe.hinge.protocol import CycleSettings
+from fe.cycle.protocol import CycleSettings
 from fe.kinds import hinge_kind
 from mesh.build import mesh_hinge
 

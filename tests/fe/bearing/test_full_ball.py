@@ -15,11 +15,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cad.bearing import BallModel, BearingHingeParams, Interfaces
+from cad.bearing_geometry import BallModel, BearingHingeParams, Interfaces
 from cad.errors import ParameterError
 from fe.bearing import ball_rig
 from fe.bearing.ball_rig import FrictionRig, load_or_build_rig, rig_key
-from fe.bearing.cycle import ball_law
+from fe.bearing.balls import ball_law
 from fe.bearing.meshed_ball import MeshedBallLaw, rig_maps
 from fe.bearing.one_ball import MESH_LEVELS
 from fe.bearing.system import BallLines, ball_lines
@@ -195,7 +195,7 @@ def test_the_rig_is_cached_by_grid_and_bearing(tmp_path, params, rig, monkeypatc
 
 
 def test_full_balls_with_frictional_fits_are_refused_by_name():
-    from fe.hinge.protocol import CycleSettings
+    from fe.cycle.protocol import CycleSettings
     from model.service import ModelService
     from model.spec import DesignPoint, ModelSpec
 
@@ -258,7 +258,7 @@ def test_full_and_hertz_cycles_agree(structure, rig, fp):
     """
     from fe.bearing.cycle import run_bearing_cycle
     from fe.bearing.full_cycle import run_full_cycle
-    from fe.hinge.protocol import CycleSettings
+    from fe.cycle.protocol import CycleSettings
 
     settings = CycleSettings(amplitude_n=400.0, mu=0.2)
     hertz = run_bearing_cycle(structure, settings, fp).result
@@ -286,7 +286,7 @@ def test_full_and_hertz_cycles_agree(structure, rig, fp):
 def test_full_cycle_without_friction_has_no_friction_work(structure, rig):
     """μ = 0: the meshed balls' patches do no friction work at any increment."""
     from fe.bearing.full_cycle import run_full_cycle
-    from fe.hinge.protocol import CycleSettings
+    from fe.cycle.protocol import CycleSettings
 
     fc = run_full_cycle(structure, CycleSettings(amplitude_n=400.0, mu=0.0), 100.0,
                         grid=MESH_LEVELS[0])  # fmt: skip

@@ -8,11 +8,12 @@ import re
 import numpy as np
 import pytest
 
-from cad.bearing import BearingHingeParams, Interfaces
+from cad.bearing_geometry import BearingHingeParams, Interfaces
 from cad.errors import ParameterError
 from cad.general import GeneralHingeParams
-from fe.effects import REGISTRY, InterfaceFriction
-from fe.hinge.protocol import CycleSettings
+from fe.cycle.protocol import CycleSettings
+from fe.effects.interfaces import InterfaceFriction
+from fe.effects.registry import REGISTRY
 from fe.kinds import hinge_kind
 from model.service import ModelService, check_spec
 from model.spec import DesignPoint, ModelSpec, geometry_key, resolve_structural, result_key

@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 
 from cad.errors import ParameterError, check_range
-from fe.hinge.protocol import CycleSettings, stage_targets
-from fe.hinge.result import CycleResult, Increment
+from fe.cycle.protocol import CycleSettings, stage_targets
+from fe.cycle.result import CycleResult, Increment
 from fe.kinds import Built, DesignVariable
 from mesh.settings import MeshSettings
 

@@ -17,13 +17,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
-from fe.contact import ContactState
-from fe.hinge.condensed import Condensed
-from fe.hinge.protocol import CycleSettings
+from fe.contact.state import ContactState
+from fe.cycle.protocol import CycleSettings
+
+if TYPE_CHECKING:  # the general hinge's condensed operators, which the result keeps
+    from fe.general.condensed import Condensed
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -83,12 +86,12 @@ class CycleResult:
             after the preload (row 0) and after every increment, shape
             (n_increments + 1, 2 n_b + 1) [mm]; None otherwise.
         slides: Increments that slide the clevis across the free play at the faces'
-            slip force (clamped faces with clearance, ``fe.hinge.freeplay``); empty when
+            slip force (clamped faces with clearance, ``fe.general.freeplay``); empty when
             the free play is crossed at zero force. When not empty the loop area is taken
             on the displacement with the free play (the slides are real dissipation).
         start_disp_mm: δ of the unloaded start in the tension configuration's
             coordinates [mm]: 0 (the pin pushed there at zero force) or −2Δr (the pin
-            centred, ``fe.hinge.freeplay``).
+            centred, ``fe.general.freeplay``).
     """
 
     settings: CycleSettings

@@ -1,6 +1,6 @@
 """The cycle of a hinge with clearance and clamped faces: the free play crossed by sliding.
 
-With clearance and the clevis arms clamped onto the tang (``fe.hinge.faces``), the pin is
+With clearance and the clevis arms clamped onto the tang (``fe.general.faces``), the pin is
 not the only load path: while the faces stick they hold the clevis wherever it is in the
 free play. The pin changes sides only when the faces let go, at the force ``F_slide``
 where every face point slips (about ``μ`` times the clamp on both faces); then the clevis
@@ -8,15 +8,15 @@ slides rigidly across the free play at that force until the pin touches the othe
 The loop therefore crosses the free play at ``F = ±F_slide``, not at 0, and the crossing
 is a rectangle of area ``F_slide × travel``: real dissipation at the faces.
 
-How it is computed (``SlidingStep``, which ``fe.hinge.cycle.run_cycle`` drives through
+How it is computed (``SlidingStep``, which ``fe.general.cycle.run_cycle`` drives through
 ``fe.cycle.driver.drive`` when the configurations have face points), with the two touching
-configurations of ``fe.hinge.cycle.configurations`` (the clevis at ``±2Δr`` from the tang,
+configurations of ``fe.general.cycle.configurations`` (the clevis at ``±2Δr`` from the tang,
 the pin at ``±Δr``):
 
 * **start**: the pin centred in its holes, the clevis centred (``δ = −2Δr`` in the
   tension configuration's coordinates), nothing touching; the clamp is applied with the
   first load increment, as at Δr = 0.
-* **force control** (as ``fe.hinge.increments.advance_force``) in the current
+* **force control** (as ``fe.general.increments.advance_force``) in the current
   configuration while the target is within what the faces hold, or on the side where the
   pin is engaged; the pin may open and float (``p = 0`` on all its points), the faces then
   carry the load alone.
@@ -31,7 +31,7 @@ the pin at ``±Δr``):
   shifted by ``(s_old − s_new)·2Δr``, so the machine displacement ``δ + s·2Δr`` is
   continuous). Where the pin first touches in the new configuration is a linear program
   (the grip's extreme position, over the pin's rigid positions, with every pin gap ≥ 0
-  under the faces' sliding forces, ``fe.hinge.crossing.engagement``). The slide is then one
+  under the faces' sliding forces, ``fe.general.crossing.engagement``). The slide is then one
   displacement-controlled increment of the faces alone (the pin carries nothing) to that
   position: the friction work of that increment is the rectangle.
 * **force control** in the new configuration from there.
@@ -53,16 +53,14 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ConvergenceError
-from fe.contact import (
-    ContactSettings,
-    ContactState,
-    ContactStatus,
-    IncrementResult,
-    solve_increment,
-)
+from fe.contact.law import ContactStatus
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState, IncrementResult
 from fe.cycle.driver import Recorded, Target
-from fe.hinge.condensed import Condensed
-from fe.hinge.crossing import (
+from fe.cycle.protocol import CycleSettings, stage_targets, with_cutbacks
+from fe.cycle.result import CycleResult, Increment
+from fe.general.condensed import Condensed
+from fe.general.crossing import (
     consistent_w,
     engagement,
     face_mask,
@@ -70,10 +68,8 @@ from fe.hinge.crossing import (
     status_counts,
     switched_state,
 )
-from fe.hinge.increments import Branch, branch_start, record_increment, solve_at_force
-from fe.hinge.protocol import CycleSettings, stage_targets, with_cutbacks
-from fe.hinge.result import CycleResult, Increment
-from fe.hinge.system import GRIP, N_PIN_MODES, N_RIGID
+from fe.general.increments import Branch, branch_start, record_increment, solve_at_force
+from fe.general.system import GRIP, N_PIN_MODES, N_RIGID
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -1,6 +1,6 @@
 """The free-play crossing's geometry: face points, where the pin engages, the state carried over.
 
-Helpers of ``fe.hinge.freeplay`` (the cycle of a hinge with clearance and clamped faces): which
+Helpers of ``fe.general.freeplay`` (the cycle of a hinge with clearance and clamped faces): which
 points of a configuration are face points, the consistent relative displacement of a state,
 its status counts, the linear program that finds where the pin first touches as the clevis
 slides, and the state carried from one touching configuration into the other.
@@ -13,15 +13,16 @@ import numpy.typing as npt
 from scipy.optimize import linprog
 
 from cad.errors import ConvergenceError
-from fe.contact import ContactState, ContactStatus
-from fe.hinge.condensed import Condensed
-from fe.hinge.system import GRIP, N_PIN_MODES
+from fe.contact.law import ContactStatus
+from fe.contact.state import ContactState
+from fe.general.condensed import Condensed
+from fe.general.system import GRIP, N_PIN_MODES
 
 FloatArray = npt.NDArray[np.float64]
 
 
 def face_mask(cond: Condensed) -> npt.NDArray[np.bool_]:
-    """True for the face points of a configuration (``fe.hinge.faces.FACE_PAIR_CODE`` < 0)."""
+    """True for the face points of a configuration (``fe.general.faces.FACE_PAIR_CODE`` < 0)."""
     return np.asarray(cond.geo.pair) < 0
 
 

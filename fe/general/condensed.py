@@ -1,7 +1,7 @@
 """The one condensed system both builders return: contact operators of one configuration.
 
-``fe.hinge.system.condense`` (the hinge, from nodal compliances, with rigid amplitudes)
-and ``fe.hinge.twobody.condense`` (two elastic bodies, by block solves) both produce a
+``fe.general.system.condense`` (the hinge, from nodal compliances, with rigid amplitudes)
+and ``fe.general.twobody.condense`` (two elastic bodies, by block solves) both produce a
 ``Condensed``; :mod:`fe.contact` solves on its ``W``, ``w0`` and ``G``.
 """
 
@@ -13,7 +13,7 @@ import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
-from fe.hinge.geometry import ContactGeometry
+from fe.general.geometry import ContactGeometry
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -1,7 +1,7 @@
 """Increments of the general hinge's cycle: solved under force control, recorded, checked.
 
-Shared by the hinge's two cycle steps, ``fe.hinge.cycle.HingeStep`` (the pin changes sides
-at F = 0) and ``fe.hinge.freeplay.SlidingStep`` (clamped faces slide it across the free
+Shared by the hinge's two cycle steps, ``fe.general.cycle.HingeStep`` (the pin changes sides
+at F = 0) and ``fe.general.freeplay.SlidingStep`` (clamped faces slide it across the free
 play): one force-controlled contact solve in a touching configuration, started on the
 branch's extrapolation; an increment with its sub-steps summed after cut-backs; the
 ``Increment`` record of a contact solve; and the check, after the cycle, that no point
@@ -17,11 +17,12 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ConvergenceError
-from fe.contact import ContactSettings, ContactState, IncrementResult, solve_increment
-from fe.hinge.condensed import Condensed
-from fe.hinge.protocol import CycleSettings, with_cutbacks
-from fe.hinge.result import CycleResult, Increment
-from fe.hinge.system import GRIP, N_RIGID, HingeSystem, displacements, outside_gaps
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState, IncrementResult
+from fe.cycle.protocol import CycleSettings, with_cutbacks
+from fe.cycle.result import CycleResult, Increment
+from fe.general.condensed import Condensed
+from fe.general.system import GRIP, N_RIGID, HingeSystem, displacements, outside_gaps
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -1,32 +1,25 @@
 """The hinge's hysteresis cycle: 0 → +Fg → −Fg → +Fg under force control, and its loss factor.
 
-Force control is exact here (see ``fe.hinge.system``): each increment prescribes F and
+Force control is exact here (see ``fe.general.system``): each increment prescribes F and
 the grip displacement δ comes out of the contact solve. Increments are graded so the
 steps are small just after each reversal, where the stick zones start to slip.
 
 This module sets the cycle up (the touching configurations, the contact settings) and runs
 it through ``fe.cycle.driver.drive`` with the hinge's step: ``HingeStep`` here, or
-``fe.hinge.freeplay.SlidingStep`` where clamped faces hold the clevis in the free play. The
-protocol is ``fe.hinge.protocol`` and what is measured on the result (η, W_cycle, U_max,
-the energy balance) is ``fe.hinge.result``. Both are re-exported here, so
-``from fe.hinge.cycle import CycleSettings, run_cycle`` is the public API.
+``fe.general.freeplay.SlidingStep`` where clamped faces hold the clevis in the free play. The
+protocol is ``fe.cycle.protocol`` and what is measured on the result (η, W_cycle, U_max,
+the energy balance) is ``fe.cycle.result``; the stage loop is ``fe.cycle.driver``.
 """
 
 from __future__ import annotations
 
 __all__ = [
-    "DEFAULT_MU",
-    "CycleResult",
-    "CycleSettings",
     "HingeStep",
-    "Increment",
     "configurations",
     "grip_force",
     "hinge_contact",
-    "increment_displacements",
     "run_cycle",
     "seed_state",
-    "stage_targets",
 ]
 
 import dataclasses
@@ -39,22 +32,21 @@ import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
 from cad.errors import ParameterError, check_range
-from fe.contact import ContactSettings, ContactState
+from fe.contact.state import ContactSettings, ContactState
 from fe.cycle.driver import CycleStep, Recorded, Target, drive
-from fe.hinge.condensed import Condensed
-from fe.hinge.crossing import has_faces
-from fe.hinge.freeplay import SlidingStep
-from fe.hinge.geometry import contact_geometry, split_window
-from fe.hinge.increments import (
+from fe.cycle.protocol import CycleSettings, stage_targets
+from fe.cycle.result import CycleResult, Increment
+from fe.general.condensed import Condensed
+from fe.general.crossing import has_faces
+from fe.general.freeplay import SlidingStep
+from fe.general.geometry import contact_geometry, split_window
+from fe.general.increments import (
     Branch,
     advance_force,
     check_window,
-    increment_displacements,
     record_increment,
 )
-from fe.hinge.protocol import DEFAULT_MU, CycleSettings, stage_targets
-from fe.hinge.result import CycleResult, Increment
-from fe.hinge.system import GRIP, N_RIGID, HingeSystem, condense, is_tang_side
+from fe.general.system import GRIP, N_RIGID, HingeSystem, condense, is_tang_side
 
 logger = logging.getLogger(__name__)
 
@@ -103,7 +95,7 @@ def run_cycle(
     """Run the load cycle on a factorised hinge.
 
     Args:
-        system: The factorised hinge (``fe.hinge.system.build_system``).
+        system: The factorised hinge (``fe.general.system.build_system``).
         clearance_mm: Its radial clearance Δr [mm] (sets the touching configurations).
         settings: Load protocol and solver options.
         configs: Condensed configurations to reuse (they depend on the mesh and Δr only).
@@ -146,7 +138,7 @@ class HingeStep:
     """The general hinge's increment for ``fe.cycle.driver.drive``: force control, F = 0 crossed.
 
     Each target is one force-controlled increment in the current touching configuration
-    (``fe.hinge.increments.advance_force``), started on the branch's extrapolation. With
+    (``fe.general.increments.advance_force``), started on the branch's extrapolation. With
     clearance the unloaded start is the tension configuration seeded toward the first
     force (``seed_state``); where the force changes sign the pin changes sides: the
     increment to F = 0 is recorded, and the other configuration is seeded toward the

@@ -12,9 +12,10 @@ import numpy as np
 import numpy.typing as npt
 
 from fe.assembly import stress_field
+from fe.cycle.result import CycleResult
 from fe.element import ElementType, von_mises
-from fe.hinge.cycle import CycleResult, increment_displacements
-from fe.hinge.system import HingeSystem
+from fe.general.increments import increment_displacements
+from fe.general.system import HingeSystem
 from mesh.hexmesh import HexMesh
 from mesh.io import add_vtu_field_data, vtu_name_codes
 

@@ -48,16 +48,17 @@ import numpy.typing as npt
 import scipy.sparse as sp
 
 from cad.errors import MeshQualityError, ParameterError
-from fe.assembly import Factorization, assemble_stiffness
+from fe.assembly import assemble_stiffness
 from fe.element import ElementType
-from fe.hinge.condensed import Condensed
-from fe.hinge.geometry import (
+from fe.general.condensed import Condensed
+from fe.general.geometry import (
     ContactGeometry,
     bilinear_weights,
     contact_operator,
     project_on_facets,
 )
-from fe.hinge.system import BLOCK_RHS
+from fe.general.system import BLOCK_RHS
+from fe.linalg.sparse import Factorization
 from mesh.hexmesh import HexMesh
 
 logger = logging.getLogger(__name__)
@@ -69,7 +70,6 @@ ZERO_ENERGY_RTOL = 1e-8
 """Largest ``|K φ|_free / |K|·|φ|`` for a field to count as zero-energy."""
 
 __all__ = [
-    "Condensed",
     "TwoBodySystem",
     "build_two_body",
     "condense",

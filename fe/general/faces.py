@@ -12,7 +12,7 @@ every stored result), so the points are found from the mesh itself:
   tang. Each slave is projected along z onto it (a plane: the closest-point projection
   of ``project_on_facets``), giving the facet and its bilinear weights.
 
-Frames follow ``fe.hinge.geometry``: ``n`` is the master's outward normal (toward the
+Frames follow ``fe.general.geometry``: ``n`` is the master's outward normal (toward the
 slave, ``∓e_z``), ``t1 = e_x`` (the load direction), ``t2 = n × t1``; ``g0`` is the
 geometric axial gap (the effect that uses them replaces it by a clamp overlap).
 
@@ -35,15 +35,16 @@ import scipy.sparse as sp
 from cad.errors import MeshQualityError, ParameterError
 from cad.surfaces import Cylinder, Plane
 from fe.assembly import dofs_of
-from fe.contact import ContactSettings, ContactState, solve_increment
-from fe.hinge.condensed import Condensed
-from fe.hinge.geometry import (
+from fe.contact.solve import solve_increment
+from fe.contact.state import ContactSettings, ContactState
+from fe.general.condensed import Condensed
+from fe.general.geometry import (
     ContactGeometry,
     bilinear_weights,
     contact_operator,
     project_on_facets,
 )
-from fe.hinge.system import GRIP, HingeSystem
+from fe.general.system import GRIP, HingeSystem
 from mesh.facets import boundary_facets, select_facets
 from mesh.hexmesh import HexMesh
 
@@ -375,7 +376,7 @@ def clamped_faces(
         contact: Contact settings of the cycle (μ, tolerance).
         radius_ratio: Footprint outer radius over the hole radius.
         pin_centred: Calibrate on the faces alone (a touching configuration of a hinge
-            with clearance, ``fe.hinge.freeplay``).
+            with clearance, ``fe.general.freeplay``).
 
     Raises:
         ParameterError: ``clamp_force_n`` ≤ 0.

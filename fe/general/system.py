@@ -50,10 +50,11 @@ import scipy.sparse as sp
 from cad.errors import MeshQualityError, ParameterError, ResourceError
 from cad.model import PairKind, SurfacePair
 from cad.surfaces import Cylinder
-from fe.assembly import Factorization, assemble_stiffness, dofs_of, inverse_block
+from fe.assembly import assemble_stiffness, dofs_of
 from fe.element import ElementType
-from fe.hinge.condensed import Condensed
-from fe.hinge.geometry import ContactGeometry, contact_operator
+from fe.general.condensed import Condensed
+from fe.general.geometry import ContactGeometry, contact_operator
+from fe.linalg.sparse import Factorization, inverse_block
 from mesh.hexmesh import HexMesh
 
 logger = logging.getLogger(__name__)

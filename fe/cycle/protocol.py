@@ -11,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ConvergenceError, check_range
-from fe.contact import ContactSettings
+from fe.contact.state import ContactSettings
 
 logger = logging.getLogger(__name__)
 

@@ -1,0 +1,14 @@
+"""The hinge as a mechanical system: geometry of its contacts, condensation, the load cycle.
+
+* :mod:`fe.general.geometry` — contact points and gaps on the exact surfaces of a mesh;
+* :mod:`fe.general.system` — the general hinge factorised once and condensed onto its
+  contact points (the Delassus operator of :mod:`fe.contact`), displacement recovery;
+* :mod:`fe.general.twobody` — the same for any two elastic bodies (verification rigs);
+* :mod:`fe.general.faces` — friction between the tang and clevis faces under an axial clamp;
+* :mod:`fe.cycle.protocol` — the load history as data (``CycleSettings``);
+* :mod:`fe.general.cycle` — the force-controlled cycle (``run_cycle``, its step ``HingeStep``
+  for :mod:`fe.cycle.driver`); :mod:`fe.general.freeplay` — the step of clamped faces with
+  clearance; :mod:`fe.general.increments` — the increments both solve and record;
+* :mod:`fe.cycle.result` — its result (loop, η, energy balance);
+* :mod:`fe.general.report` — loop CSV/PNG and the ParaView series.
+"""
