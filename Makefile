@@ -35,7 +35,7 @@ bench: $(STAMP)
 crosscheck: $(STAMP)
 	@command -v ccx >/dev/null || { echo "ccx missing: installing CalculiX with apt-get (needs root)"; \
 		apt-get update && apt-get install -y calculix-ccx; }
-	$(BIN)/python -m pytest -q -m "slow or not slow" tests/fe/test_inp.py tests/fe/test_ccx_crosscheck.py
+	$(BIN)/python -m pytest -q -m "slow or not slow" tests/fe/interop/test_inp.py tests/fe/interop/test_ccx_crosscheck.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -221,7 +221,7 @@ def penalty_table(folder: Path) -> list[dict[str, object]]:
     """Frictionless first loading: ccx's δ(+Fg) per penalty slope against ours (μ = 0)."""
     from fe.interop.ccx import loop_from_dat, parse_dat, run_ccx
     from fe.interop.inp import GRIP_REF_SET
-    from studies.cli import main
+    from studies.cli.main import main
 
     toml = model_file(folder, "coarse")
     out = folder / "ours_mu0"

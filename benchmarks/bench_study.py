@@ -25,7 +25,7 @@ def _study(study: Path, out: Path, *extra: str) -> float:
     cmd = [
         sys.executable,
         "-m",
-        "studies.cli",
+        "studies.cli.main",
         "study",
         str(study),
         "--out",

@@ -290,7 +290,7 @@ def run_sweep(
             (checked before anything is meshed).
     """
     from rsm import trace, trace_store
-    from studies.pipeline import check_trace_db, check_writable_dir
+    from studies.outputs import check_trace_db, check_writable_dir
 
     t0 = time.perf_counter()
     check_writable_dir(out, "--out")

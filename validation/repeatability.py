@@ -5,7 +5,7 @@ The pendulum test records about 200 readings ``l`` of a laser sensor at the dist
 ``read_readings`` (CSV, one group per hinge) → ``analyse_readings`` (normal fit,
 Shapiro–Wilk and Anderson–Darling, ``6σ`` as the position error, the repeatability
 ``θ = arcsin(6σ/L)`` [rad] with confidence intervals) → ``correlate`` (η against θ
-across hinges). ``hingelab repeatability`` (``studies.cmd_repeatability``) writes the
+across hinges). ``hingelab repeatability`` (``studies.cli.repeatability``) writes the
 JSON, CSV and plots.
 
 **Eq. 14 as printed is not what Table 7 computes.** The paper prints

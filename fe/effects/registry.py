@@ -20,7 +20,7 @@ metrics (η, U_max, the energy balance) are consistent.
 Fingerprints: each effect's docstring gives a table measured on the coarse test mesh
 (``MeshSettings.coarse()``: size 4, contact 2 mm; μ = 0.2),
 baseline vs effect, η and δ(+Fg) [µm] at Fg = 100 and 400 N and Δr = 0 and 0.1 mm
-(``tests/fe/test_effects.py::fingerprint_table`` regenerates it; the slow test
+(``tests/fe/effects/test_effects.py::fingerprint_table`` regenerates it; the slow test
 ``test_docstring_fingerprints_are_measured`` checks every row to 2 %), each effect at its
 parameter's default strength, 40 increments per stage (with clearance, fewer increments
 leave a first-order open/close work in the loop area: at 6 per stage η at Δr = 0.1 mm

@@ -284,22 +284,25 @@ def _approach(
         to = float(start.alpha[GRIP]) + direction * step_mm
         idx = index + len(steps)
 
-        def attempt(n_sub: int, st: ContactState = start, to: float = to, idx: int = idx) -> _Step:
+        def attempt(
+            n_sub: int, st: ContactState = start, to: float = to, idx: int = idx
+        ) -> list[_Step]:
             a0 = float(st.alpha[GRIP])
-            works, iters = np.zeros(2), 0
+            out: list[_Step] = []
             for k in range(1, n_sub + 1):
-                r = _displaced(cond, st, a0 + (to - a0) * k / n_sub, contact, mask, idx)
-                works += (r.friction_work, r.normal_work)
-                iters += r.iterations
-                st = r.state
-            return _Step(st, float(works[0]), float(works[1]), iters, status_counts(st.status))
+                out.append(
+                    _displaced(cond, st, a0 + (to - a0) * k / n_sub, contact, mask, idx + k - 1)
+                )
+                st = out[-1].state
+            return out
 
         what = f"approach {idx} (δ → {to:.6g} mm)"
-        step = with_cutbacks(
+        # a cut-back's sub-steps are recorded one by one (as in ``_forced``): the loop then
+        # has their points, and its trapezoidal area matches their works exactly
+        steps += with_cutbacks(
             attempt, settings.max_cutbacks, increment=idx, what=what, partial=partial
         )
-        steps.append(step)
-        state = step.state
+        state = steps[-1].state
         status = np.asarray(state.status)
         pin_load = float(np.abs(np.asarray(state.p)[~faces]).sum())
         if (

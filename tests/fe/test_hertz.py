@@ -6,7 +6,7 @@ A cylinder of radius R is pressed on a flat by a force P' per unit length, frict
     a  = sqrt(4 P' R / (π E*)),   p0 = 2 P' / (π a),   p(x) = p0 sqrt(1 − x²/a²),
     1/E* = (1 − ν1²)/E1 + (1 − ν2²)/E2.
 
-Model (tests/fe/_contact_meshes.py): two bodies, one element thick in z with u_z = 0 on
+Model (tests/fe/contact_meshes.py): two bodies, one element thick in z with u_z = 0 on
 every node, which is exactly plane strain (all nodes lie on the two end faces). The
 cylinder body's bottom face lies on the circle; the flat's top face is the exact Plane
 master. The cylinder's top is a rigid grip driven by the force P (force control through
@@ -47,7 +47,7 @@ from cad.materials import Material
 from fe.contact.solve import solve_increment
 from fe.contact.state import ContactSettings, ContactState
 from fe.general.twobody import displacement, external_response, free_gap
-from tests.fe._contact_meshes import CylinderOnFlat, plane_strain_modulus, press_rig
+from tests.fe.contact_meshes import CylinderOnFlat, plane_strain_modulus, press_rig
 
 STEEL = Material("steel", 210_000.0, 0.30)
 ALUMINIUM = Material("aluminium", 71_000.0, 0.33)

@@ -9,7 +9,7 @@ from rsm.polynomial import fit_response_surface
 
 
 def test_one_variable_surface_gets_slices_only(tmp_path):
-    # The two-variable plots are written (and checked) by tests/studies/test_cmd_rsm.py.
+    # The two-variable plots are written (and checked) by tests/studies/cli/test_rsm.py.
     x = np.linspace(0, 1, 6)[:, None]
     s = fit_response_surface(x, x[:, 0] ** 2, 2, x_names=("load_N",))
     out = plot_all(s, fit_metrics(s, warn=False), tmp_path)

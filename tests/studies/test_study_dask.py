@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from studies.cli import main
+from studies.cli.main import main
 
 pytest.importorskip("gmsh")
 pytest.importorskip("distributed")
@@ -116,7 +116,7 @@ def test_study_on_an_existing_cluster_equals_the_serial_run(tmp_path, capsys):
         [
             sys.executable,
             "-m",
-            "studies.cli",
+            "studies.cli.main",
             "study",
             str(study),
             "--out",

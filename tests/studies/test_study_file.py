@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from cad.errors import ParameterError
-from studies.cli import main
+from studies.cli.main import main
 from studies.study_file import read_study
 
 EXAMPLES = Path(__file__).parents[2] / "studies" / "examples"

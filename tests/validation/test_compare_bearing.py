@@ -10,7 +10,7 @@ import pytest
 
 from cad.errors import ParameterError
 from fe.kinds import hinge_kind
-from studies.cli import main
+from studies.cli.main import main
 
 MODEL_MESH = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2),)}
 DATA_MESH = {"size_mm": 3.5, "contact_size_mm": 0.7, "part_sizes_mm": (("ring", 1.0),)}

@@ -60,7 +60,7 @@ def test_bearing_set_from_a_finer_mesh_with_a_hidden_frame(tmp_path, capsys):
     the set reads back as bearing data whose peak displacement exceeds the coarse model's by
     the frame's C_f·Fg (to the mesh difference and the noise), and compare says so."""
     from model.file import write_model
-    from studies.cli import main
+    from studies.cli.main import main
     from validation.compare import compare
     from validation.measurements import read_measurement_set
     from validation.workflow import run_model_for_cases

@@ -1,0 +1,72 @@
+"""``hingelab diagnose``: which candidate effect is missing from the model.
+
+``hingelab diagnose MODEL.toml DATA_DIR [--json]`` summarises every measured loop into
+features (``validation.features``), fits every registry effect's parameter
+(``validation.diagnose``; one mesh and factorisation per clearance, reused for every
+candidate and value) and prints the residual pattern, the ranked candidates and the
+verdict: ``effect_missing``, ``no_missing_effect``, ``indistinguishable`` or
+``unexplained``. Exit status 0 whatever the verdict; 1 only for bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from studies.cli.args import add_fit_arguments
+from studies.outputs import dumps
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Add the ``diagnose`` subcommand."""
+    p = sub.add_parser("diagnose", help="rank the candidate effects that could explain the error")
+    p.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
+    p.add_argument("data", type=Path, metavar="DATA_DIR", help="measurement folder (cases.csv)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_fit_arguments(p)
+    p.add_argument(
+        "--alpha",
+        type=float,
+        default=0.01,
+        help="false-alarm probability, in (0, 0.5] (default 0.01)",
+    )
+    p.add_argument(
+        "--candidates",
+        default=None,
+        metavar="NAME[,NAME]",
+        help="try only these effects (default: every one that applies to the model's hinge)",
+    )
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``hingelab diagnose``."""
+    from cad.errors import ParameterError
+    from model.file import read_model
+    from validation.candidate_fit import DiagnoseSettings
+    from validation.diagnose import diagnose
+    from validation.features import FeatureSettings
+    from validation.measurements import read_measurement_set
+
+    if not 0.0 < args.alpha <= 0.5:  # 'not' also refuses NaN
+        raise ParameterError(f"--alpha must be in (0, 0.5], got {args.alpha}")
+    if args.candidates is not None and not args.candidates.strip(", "):
+        raise ParameterError(f"--candidates must name at least one effect, got {args.candidates!r}")
+    spec = read_model(args.model)
+    data = read_measurement_set(args.data)
+    settings = DiagnoseSettings(
+        features=FeatureSettings(rel_floor=args.model_error),
+        alpha=args.alpha,
+        increments_per_stage=args.increments,
+        clearance_increments=2 * args.increments,
+        candidates=None
+        if args.candidates is None
+        else tuple(n.strip() for n in args.candidates.split(",") if n.strip()),
+    )
+    result = diagnose(spec, data, settings)
+    if args.json:
+        print(dumps(result.to_dict()))
+    else:
+        print(result.text())
+        print(f"{result.stats['n_cycles']:.0f} cycles, {result.stats['wall_s']:.0f} s")
+    return 0

@@ -1,0 +1,100 @@
+"""The ``hingelab`` command line: one thin entry point over the library.
+
+Each subcommand lives in its own ``studies/cmd_*.py`` module exposing
+``register(subparsers) -> None``; the module sets ``func(args) -> int`` as the
+parser default. Project errors are caught here, at the boundary, and printed as
+one clear message on stderr with exit status 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sqlite3
+import sys
+
+from cad.errors import HingelabError
+
+SUBCOMMAND_MODULES = (
+    "studies.cli.mesh",
+    "studies.cli.cycle",
+    "studies.cli.rsm",
+    "studies.cli.trace",
+    "studies.cli.sweep",
+    "studies.cli.study",
+    "studies.cli.compare",
+    "studies.cli.synth",
+    "studies.cli.diagnose",
+    "studies.cli.calibrate",
+    "studies.cli.export_inp",
+    "studies.cli.repeatability",
+    "studies.cli.paper",
+    "studies.cli.report",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser with every available subcommand registered."""
+    parser = argparse.ArgumentParser(
+        prog="hingelab",
+        description="Hysteresis of precision space hinges: CAD → hex mesh → contact FE → response surfaces.",
+    )
+    parser.add_argument(
+        "-v", "--verbose", action="store_true", help="log progress (and Dask's logs) to stderr"
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in SUBCOMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("hingelab")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+def _os_message(err: OSError) -> str:
+    """One line naming the path and what went wrong (``[Errno 13] ...`` without the errno)."""
+    what = err.strerror or str(err)
+    where = err.filename if err.filename is not None else ""
+    return f"{where}: {what}" if where else what
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the process exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+    try:
+        return int(args.func(args))
+    except HingelabError as err:
+        print(f"hingelab {args.command}: error: {err}", file=sys.stderr)
+        return 1
+    except (
+        OSError
+    ) as err:  # a read-only folder, a full disk, a missing file: one line, no traceback
+        print(f"hingelab {args.command}: error: {_os_message(err)}", file=sys.stderr)
+        return 1
+    except sqlite3.Error as err:
+        print(f"hingelab {args.command}: error: database: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(
+            f"hingelab {args.command}: interrupted; every finished point is kept "
+            "(rerun the same command to resume)",
+            file=sys.stderr,
+        )
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

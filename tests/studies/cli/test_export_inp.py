@@ -1,0 +1,96 @@
+"""``hingelab export-inp`` end to end: a deck from a model file, overrides, clear errors."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from cad.general import GeneralHingeParams
+from fe.cycle.protocol import CycleSettings
+from mesh.settings import MeshSettings
+from model.file import write_model
+from model.spec import ModelSpec
+from studies.cli.main import main
+
+pytest.importorskip("gmsh")
+
+
+@pytest.fixture
+def model_file(tmp_path):
+    spec = ModelSpec(
+        "general",
+        GeneralHingeParams(),
+        MeshSettings.coarse(),
+        CycleSettings(amplitude_n=250.0, mu=0.15),
+    )
+    return write_model(spec, tmp_path / "MODEL.toml")
+
+
+def test_deck_from_model_file_with_overrides(tmp_path, capsys, model_file):
+    out = tmp_path / "deck" / "model.inp"
+    argv = ["export-inp", str(model_file), "--out", str(out), "--json"]
+    assert main([*argv, "--amplitude", "300", "--clearance", "0.1", "--mu", "0.3"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["amplitude_N"] == 300.0
+    assert summary["mu"] == 0.3
+    assert summary["clearance_mm"] == 0.1
+    assert summary["pairs"] == ["pin-tang", "pin-clevis_1", "pin-clevis_2"]
+    text = out.read_text()
+    assert text.count("*STEP") == 3
+    assert text.count("*CONTACT PAIR") == 3
+    assert "*FRICTION\n0.3, " in text
+    # With clearance the grip spring's force at the touching configuration (50 N/mm · 2Δr)
+    # is added to the *CLOAD, so the hinge carries 300 N.
+    assert "grip_ref, 1, 310.\n" in text
+    assert "grip_ref, 1, -310.\n" in text
+
+
+def test_model_file_values_are_the_defaults(tmp_path, capsys, model_file):
+    out = tmp_path / "m.inp"
+    assert main(["export-inp", str(model_file), "--out", str(out)]) == 0
+    assert "ccx -i m" in capsys.readouterr().out
+    text = out.read_text()
+    assert "grip_ref, 1, 250.\n" in text
+    assert "*FRICTION\n0.15, " in text
+
+
+def test_mortar_deck_is_the_exact_counterpart(tmp_path, capsys, model_file):
+    """``--contact mortar`` writes DeckSettings.exact_mortar: mortar pairs, hard contact
+    (no *SURFACE BEHAVIOR), no ADJUST; the node default keeps its penalty cards."""
+    out = tmp_path / "mortar.inp"
+    argv = ["export-inp", str(model_file), "--out", str(out), "--json", "--contact", "mortar"]
+    assert main(argv) == 0
+    assert json.loads(capsys.readouterr().out)["contact"] == "MORTAR"
+    text = out.read_text()
+    assert text.count("TYPE=MORTAR") == 3
+    assert "\n*SURFACE BEHAVIOR" not in text
+    assert "ADJUST=" not in text
+    node = tmp_path / "node.inp"
+    assert main(["export-inp", str(model_file), "--out", str(node)]) == 0
+    assert "\n*SURFACE BEHAVIOR" in node.read_text()
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (["--mu", "-1"], "mu must be in [0, 2], got -1.0"),
+        (["--amplitude", "0"], "amplitude_n must be in (0, 1e+06], got 0.0"),
+        (["--clearance", "-0.1"], "clearance_mm"),
+        (["--penalty", "0"], "penalty_mpa_per_mm"),
+    ],
+    ids=["mu", "amplitude", "clearance", "penalty"],
+)
+def test_bad_parameter_exits_1_with_one_line(tmp_path, capsys, model_file, extra, needle):
+    assert main(["export-inp", str(model_file), "--out", str(tmp_path / "m.inp"), *extra]) == 1
+    err = capsys.readouterr().err
+    assert needle in err
+    assert err.startswith("hingelab export-inp: error:")
+    assert err.count("\n") == 1
+
+
+def test_wrong_suffix_and_missing_model(tmp_path, capsys, model_file):
+    assert main(["export-inp", str(model_file), "--out", str(tmp_path / "m.txt")]) == 1
+    assert "out must end in .inp" in capsys.readouterr().err
+    assert main(["export-inp", str(tmp_path / "nope.toml"), "--out", str(tmp_path / "m.inp")]) == 1
+    assert "model file not found" in capsys.readouterr().err
