@@ -19,7 +19,6 @@ gives the project's values for them.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -27,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from model.jsonio import dumps
 from rsm.metrics import FitMetrics, fit_metrics
 from rsm.paper_printed import (
     ETA_THRESHOLD,
@@ -463,7 +463,5 @@ def write_report(cmp: PaperComparison, out_dir: str | Path) -> ReportFiles:
     d.mkdir(parents=True, exist_ok=True)
     md, js = d / "paper_comparison.md", d / "paper_comparison.json"
     md.write_text(report_markdown(cmp), encoding="utf-8")
-    js.write_text(
-        json.dumps(report_json(cmp), indent=2, ensure_ascii=False) + "\n", encoding="utf-8"
-    )
+    js.write_text(dumps(report_json(cmp)) + "\n", encoding="utf-8")
     return ReportFiles(md, js)

@@ -7,19 +7,18 @@ describes the schema.
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 import sqlite3
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import closing, contextmanager
 from datetime import UTC, datetime
-from enum import Enum
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
 from cad.errors import DataError, ParameterError
+from model.jsonio import dumps
 from rsm.metrics import FitMetrics
 from rsm.polynomial import ResponseSurface
 
@@ -64,20 +63,8 @@ def sha256_of(path: str | Path) -> str:
     return h.hexdigest()
 
 
-def _jsonable(value: object) -> object:
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, Path):
-        return str(value)
-    if isinstance(value, Enum):
-        return value.value
-    raise TypeError(f"cannot store {type(value).__name__} {value!r} in the trace")
-
-
 def _dumps(obj: Mapping[str, object]) -> str:
-    return json.dumps(dict(obj), default=_jsonable, sort_keys=True)
+    return dumps(dict(obj), indent=None, sort_keys=True)
 
 
 def _now() -> str:
@@ -209,7 +196,7 @@ def record_point(
         pid = int(cur.lastrowid or 0)
         con.executemany(
             "INSERT INTO params VALUES (?, ?, ?)",
-            [(pid, k, _jsonable(v) if isinstance(v, np.generic) else v) for k, v in params.items()],
+            [(pid, k, v.item() if isinstance(v, np.generic) else v) for k, v in params.items()],
         )
         con.executemany(
             "INSERT INTO results VALUES (?, ?, ?)",
@@ -261,11 +248,11 @@ def record_fit(
                 sid,
                 _now(),
                 surface.y_name,
-                json.dumps(list(surface.x_names)),
+                dumps(list(surface.x_names), indent=None),
                 surface.degree,
-                json.dumps(list(surface.term_names)),
-                json.dumps([float(b) for b in surface.coefficients]),
-                json.dumps(summary),
+                dumps(list(surface.term_names), indent=None),
+                dumps([float(b) for b in surface.coefficients], indent=None),
+                dumps(summary, indent=None),
             ),
         )
         fid = int(cur.lastrowid or 0)

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import json
-import math
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -36,32 +34,6 @@ def mesh_summary(m: MeshedHinge, total_wall_s: float) -> dict[str, Any]:
         "files": {k: str(v) for k, v in m.files.items()},
         "wall_s": total_wall_s,
     }
-
-
-def dumps(obj: Any) -> str:
-    """Strict JSON: NaN and ±Infinity become null; paths, enums and numpy values plain.
-
-    Strict parsers (and SQLite's JSON functions) reject the ``NaN`` that ``json.dumps``
-    writes by default, so every JSON the command line prints or writes goes through here.
-    """
-    return json.dumps(strict_json(obj), indent=2, allow_nan=False, ensure_ascii=False)
-
-
-def strict_json(obj: Any) -> Any:
-    """Return ``obj`` as plain JSON values, every non-finite float replaced by None."""
-    if isinstance(obj, dict):
-        return {str(k): strict_json(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [strict_json(v) for v in obj]
-    if hasattr(obj, "tolist"):  # numpy arrays and scalars
-        return strict_json(obj.tolist())
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if obj is None or isinstance(obj, bool | int | str):
-        return obj
-    if hasattr(obj, "value") and isinstance(obj.value, str | int):  # enums
-        return obj.value
-    return str(obj)
 
 
 def check_writable_dir(folder: Path, option: str) -> Path:

@@ -60,7 +60,7 @@ def point_record(
         lu_threads: The LU thread count of the process that ran it (default: this one's).
     """
     from fe.general.report import write_loop_csv, write_loop_png
-    from studies.outputs import dumps, strict_json
+    from model.jsonio import dumps, strict_json
 
     if lu_threads is None:
         from fe.contact import newton

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from cad.errors import ParameterError
+from model.jsonio import dumps
 from model.spec import ModelSpec
 from validation.candidate_fit import DiagnoseSettings, chi2, fit_candidate, measured_features
 from validation.evaluate import ModelEvaluator
@@ -178,7 +179,7 @@ def append_ledger(out: Path, rows: Sequence[LedgerRow]) -> list[dict[str, Any]]:
     if old and new and new[0]["step"] == "baseline":
         new = new[1:]  # the baseline of a later round is the last step of the previous one
     every = old + new
-    path.write_text(json.dumps(every, indent=1, ensure_ascii=False) + "\n")
+    path.write_text(dumps(every, indent=1) + "\n")
     lines = ["step,params,n_params,chi2,error,heldout_error,aic,bic,model"]
     for r in every:
         p = ";".join(f"{k}={v:.6g}" for k, v in r["params"].items())

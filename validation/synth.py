@@ -22,7 +22,6 @@ set is reproducible from its seed and a case does not depend on the others.
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -36,6 +35,7 @@ from cad.errors import ParameterError, check_range
 from fe.cycle.result import CycleResult
 from fe.kinds import DEFAULT_KIND, hinge_kind
 from mesh.settings import MeshSettings
+from model.jsonio import dumps
 from model.spec import DesignPoint, ModelSpec, hinge_at
 
 FloatArray = npt.NDArray[np.float64]
@@ -477,5 +477,5 @@ def _synthesize(
         "cases": sorted(records, key=lambda r: index[r["case_id"]]),
         "wall_s": time.perf_counter() - t0,
     }
-    (out / "manifest.json").write_text(json.dumps(manifest, indent=1, ensure_ascii=False) + "\n")
+    (out / "manifest.json").write_text(dumps(manifest, indent=1) + "\n")
     return SynthReport(out, manifest)

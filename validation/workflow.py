@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -11,29 +10,11 @@ from typing import Any
 import numpy as np
 
 from cad.errors import DataError, ParameterError
+from model.jsonio import dumps
 from model.spec import DesignPoint, ModelSpec, complete_point, describe_point, point_label
 from validation.compare import CompareSettings, Comparison, ModelResult
 from validation.loop_files import Loop
 from validation.measurements import Case
-
-
-def dumps(obj: Any) -> str:
-    """Strict JSON (no NaN/Infinity: they become null) with paths and numpy scalars as plain values."""
-    return json.dumps(_strict(obj), indent=2, allow_nan=False)
-
-
-def _strict(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _strict(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_strict(v) for v in obj]
-    if hasattr(obj, "item"):
-        obj = obj.item()
-    if isinstance(obj, float):
-        return obj if np.isfinite(obj) else None
-    if obj is None or isinstance(obj, bool | int | str):
-        return obj
-    return str(obj)
 
 
 def _check_cases(spec: ModelSpec, cases: Sequence[Case]) -> None:

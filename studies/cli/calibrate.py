@@ -17,8 +17,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cad.errors import ParameterError
+from model.jsonio import dumps
 from studies.cli.args import add_fit_arguments
-from studies.outputs import check_writable_dir, dumps
+from studies.outputs import check_writable_dir
 
 if TYPE_CHECKING:
     from model.spec import ModelSpec

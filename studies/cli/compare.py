@@ -18,7 +18,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from studies.outputs import check_writable_dir, dumps
+from model.jsonio import dumps
+from studies.outputs import check_writable_dir
 
 if TYPE_CHECKING:
     from validation.compare import Comparison

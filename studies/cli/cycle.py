@@ -10,8 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from cad.errors import ParameterError
+from model.jsonio import dumps
 from studies.cli.args import add_geometry_arguments, settings_from_args, with_option
-from studies.outputs import check_writable_dir, dumps
+from studies.outputs import check_writable_dir
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -7,7 +7,7 @@ import dataclasses
 from pathlib import Path
 
 from cad.errors import ParameterError
-from studies.outputs import dumps
+from model.jsonio import dumps
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

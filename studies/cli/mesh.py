@@ -6,8 +6,9 @@ import argparse
 import time
 from pathlib import Path
 
+from model.jsonio import dumps
 from studies.cli.args import add_geometry_arguments, settings_from_args
-from studies.outputs import dumps, mesh_summary
+from studies.outputs import mesh_summary
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from studies.outputs import dumps
+from model.jsonio import dumps
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

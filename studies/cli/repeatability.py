@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import math
 import re
 import textwrap
@@ -28,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from cad.errors import DataError, ParameterError, check_range
+from model.jsonio import dumps
 from validation import repeatability as rp
 
 UM_PER_MM = 1e3
@@ -391,7 +391,7 @@ def run(args: argparse.Namespace) -> int:
         "correlation_reason": None if corr else f"needs η for at least 2 hinges, got {n_eta}",
         "files": {k: str(v) for k, v in files.items()},
     }
-    text = json.dumps(doc, indent=2, ensure_ascii=False, allow_nan=False)
+    text = dumps(doc)
     files["json"].write_text(text + "\n", encoding="utf-8")
     write_summary_csv(results, files["csv"])
     print(text if args.json else _text_report(doc))

@@ -18,7 +18,7 @@ import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from studies.outputs import dumps
+from model.jsonio import dumps
 
 if TYPE_CHECKING:  # the fit, plots and paper tables load scipy and matplotlib: only when used
     from rsm.metrics import FitMetrics

@@ -21,8 +21,9 @@ from pathlib import Path
 from typing import Any
 
 from cad.errors import DataError, ParameterError
+from model.jsonio import dumps
 from studies.cli.args import add_cluster_arguments
-from studies.outputs import check_trace_db, check_writable_dir, dumps
+from studies.outputs import check_trace_db, check_writable_dir
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

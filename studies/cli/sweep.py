@@ -9,6 +9,7 @@ from pathlib import Path
 from cad.errors import ParameterError
 from fe.cycle.protocol import DEFAULT_MU
 from fe.kinds import DEFAULT_KIND, HingeKind, hinge_kind, kind_names
+from model.jsonio import dumps
 from studies.cli.args import (
     add_cluster_arguments,
     add_mesh_arguments,
@@ -16,7 +17,6 @@ from studies.cli.args import (
     with_option,
 )
 from studies.options import params_with
-from studies.outputs import dumps
 from studies.sweep import SweepSettings, run_sweep
 
 

@@ -10,12 +10,12 @@ opened; the exit status is then 1. ``hingelab trace --schema`` prints the databa
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
 
 from cad.errors import ParameterError
+from model.jsonio import dumps
 from rsm import trace
 
 
@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError("give a trace database and a point id: hingelab trace DB POINT")
     t = trace.walk(args.db, args.point)
     if args.json:
-        print(json.dumps(trace.trace_as_dict(t), indent=2, ensure_ascii=False))
+        print(dumps(trace.trace_as_dict(t)))
     else:
         print(trace.format_trace(t))
     bad = [a for a in t.artifacts if a.state is not trace.ArtifactState.OK]

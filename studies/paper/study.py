@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from fe.kinds import hinge_kind
-from studies.outputs import dumps, strict_json
+from model.jsonio import dumps, strict_json
 from studies.paper import checks as paper_checks
 
 GRID = (100.0, 200.0, 300.0, 400.0, 500.0)

@@ -22,13 +22,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import time
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from studies.outputs import dumps
+from model.jsonio import dumps
 
 TABLE1 = "paper_table1_eta.csv"
 TEST_POINT = "paper_test_point_400N.csv"
@@ -107,7 +106,7 @@ def run(out: Path, quick: bool) -> dict[str, Any]:
 
 def _markdown(r: dict[str, Any]) -> str:
     lines = ["# Our model against the paper's published values", ""]
-    lines.append(f"Model mesh: {json.dumps(r['model']['mesh'])}; μ = {r['model']['mu']:g}.")
+    lines.append(f"Model mesh: {dumps(r['model']['mesh'], indent=None)}; μ = {r['model']['mu']:g}.")
     lines.append("")
     lines.append("| Δr mm | Fg N | η paper | η model | error |")
     lines.append("|---|---|---|---|---|")

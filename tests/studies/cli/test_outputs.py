@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from model.jsonio import dumps
 from studies.cli.main import main
-from studies.outputs import dumps
 
 
 def _no_nan(text: str) -> object:
