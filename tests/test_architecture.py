@@ -88,3 +88,46 @@ def test_the_kind_branch_pattern_catches_what_it_is_for() -> None:
     ]
     assert all(KIND_BRANCH.search(line) for line in caught)
     assert not any(KIND_BRANCH.search(line) for line in allowed)
+
+
+def test_readme_command_table_names_every_command_and_only_those() -> None:
+    from studies.cli.main import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    commands = set(sub.choices)
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = text.split("## Command line", 1)[1].split("```bash", 1)[1].split("```", 1)[0]
+    named = set(re.findall(r"^hingelab ([a-z][a-z-]*)", block, re.M))
+    assert named == commands, f"README lists {sorted(named)}, the CLI has {sorted(commands)}"
+
+
+def test_architecture_md_names_files_and_modules_that_exist() -> None:
+    text = (ROOT / "ARCHITECTURE.md").read_text(encoding="utf-8")
+    paths = set(
+        re.findall(r"`((?:cad|mesh|fe|model|rsm|studies|validation|tests)/[\w/]+\.py)`", text)
+    )
+    assert paths, "ARCHITECTURE.md names no file"
+    missing = sorted(p for p in paths if not (ROOT / p).is_file())
+    assert not missing, f"ARCHITECTURE.md names files that do not exist: {missing}"
+    names = set(re.findall(r"`((?:fe|model|studies|mesh)\.[\w.]+)`", text))
+    absent = sorted(n for n in names if not _resolves(n))
+    assert not absent, f"ARCHITECTURE.md names modules or objects that do not exist: {absent}"
+
+
+def _resolves(dotted: str) -> bool:
+    """True if ``dotted`` is a module, or an attribute path inside one."""
+    import importlib
+
+    parts = dotted.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        for attr in parts[i:]:
+            if not hasattr(obj, attr):
+                return False
+            obj = getattr(obj, attr)
+        return True
+    return False

@@ -83,7 +83,7 @@ REGISTRY: Mapping[str, Effect] = types.MappingProxyType(
             TangentialCompliance(),
             Interference(),
             FaceFriction(),  # last: the effects before it act on the pin–hole points only
-            InterfaceFriction(),  # the bearing hinge's: swaps its structure (fe.service)
+            InterfaceFriction(),  # the bearing hinge's: swaps its structure (fe.kinds.bearing)
         )
     }
 )

@@ -1,6 +1,6 @@
 """The ``hingelab`` command line: one thin entry point over the library.
 
-Each subcommand lives in its own ``studies/cmd_*.py`` module exposing
+Each subcommand lives in its own ``studies/cli/<command>.py`` module exposing
 ``register(subparsers) -> None``; the module sets ``func(args) -> int`` as the
 parser default. Project errors are caught here, at the boundary, and printed as
 one clear message on stderr with exit status 1.
