@@ -41,10 +41,14 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cad.errors import DataError, ParameterError
 from fe.kinds import DEFAULT_KIND, HingeKind, hinge_kind, kind_names
+
+if TYPE_CHECKING:
+    from model.spec import ModelSpec
+    from studies.sweep import SweepSettings
 
 
 def study_variables(kind: HingeKind) -> tuple[str, ...]:
@@ -108,7 +112,7 @@ class Study:
     path: Path
     name: str
     description: str
-    spec: Any
+    spec: ModelSpec
     design: str
     points: tuple[tuple[float, float], ...]
     surface: SurfaceSpec | None
@@ -123,7 +127,7 @@ class Study:
         """The names of a point's values (trace parameters and table columns)."""
         return study_variables(self.spec.hinge_kind)
 
-    def sweep_settings(self, *, workers: int = 1, scheduler: str | None = None) -> Any:
+    def sweep_settings(self, *, workers: int = 1, scheduler: str | None = None) -> SweepSettings:
         """The ``studies.sweep.SweepSettings`` that run this study."""
         from studies.sweep import SweepSettings
 
@@ -188,7 +192,7 @@ def _override(
         raise _err(path, sec, str(err)) from err
 
 
-def _base_spec(study: dict[str, Any], path: Path) -> Any:
+def _base_spec(study: dict[str, Any], path: Path) -> ModelSpec:
     from model.spec import ModelSpec
 
     model = study.get("model")
@@ -202,7 +206,7 @@ def _base_spec(study: dict[str, Any], path: Path) -> Any:
     return read_model(path.parent / model)
 
 
-def _model(doc: dict[str, Any], study: dict[str, Any], path: Path) -> Any:
+def _model(doc: dict[str, Any], study: dict[str, Any], path: Path) -> ModelSpec:
     from model.service import check_spec
 
     spec = _base_spec(study, path)
@@ -253,7 +257,9 @@ def _variable(design: dict[str, Any], name: str, design_type: str, path: Path) -
     return (lo, hi)
 
 
-def _design(doc: dict[str, Any], spec: Any, path: Path) -> tuple[str, list[tuple[float, float]]]:
+def _design(
+    doc: dict[str, Any], spec: ModelSpec, path: Path
+) -> tuple[str, list[tuple[float, float]]]:
     import numpy as np
 
     from rsm import design as doe
@@ -313,7 +319,7 @@ def _design(doc: dict[str, Any], spec: Any, path: Path) -> tuple[str, list[tuple
     return design_type, points
 
 
-def _check_points(points: list[tuple[float, float]], spec: Any, path: Path) -> None:
+def _check_points(points: list[tuple[float, float]], spec: ModelSpec, path: Path) -> None:
     from model.spec import DesignPoint, complete_point
 
     names = study_variables(spec.hinge_kind)

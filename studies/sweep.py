@@ -41,14 +41,17 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cad.errors import ParameterError
 from fe.cycle.protocol import DEFAULT_MU
-from fe.kinds import DEFAULT_KIND, hinge_kind
+from fe.kinds import DEFAULT_KIND, HingeKind, hinge_kind
 from mesh.settings import MeshSettings
 from studies.options import params_with
 from studies.sweep_points import point_record, sweep_service
+
+if TYPE_CHECKING:
+    from model.spec import DesignPoint, ModelSpec
 
 logger = logging.getLogger(__name__)
 
@@ -87,7 +90,7 @@ class SweepSettings:
     workers: int = 1
     study: str = "general_hinge"
     points: tuple[tuple[float, float], ...] = ()
-    model: Any = None
+    model: ModelSpec | None = None
     scheduler: str | None = None
     hinge: str = DEFAULT_KIND
     hinge_options: tuple[tuple[str, Any], ...] = ()
@@ -103,7 +106,7 @@ class SweepSettings:
         self.spec()  # every parameter is checked now, before anything is meshed
         self.design_points()
 
-    def spec(self) -> Any:
+    def spec(self) -> ModelSpec:
         """The ``model.spec.ModelSpec`` of the sweep (the design variable is set per point)."""
         from model.service import check_spec
 
@@ -130,10 +133,10 @@ class SweepSettings:
         variables = self._kind().design_variables
         return variables[0].study_levels if variables else (0.0,)
 
-    def _kind(self) -> Any:
+    def _kind(self) -> HingeKind:
         return self.spec().hinge_kind if self.model is not None else hinge_kind(self.hinge)
 
-    def design_points(self) -> list[Any]:
+    def design_points(self) -> list[DesignPoint]:
         """The distinct design points (the grid level-major, or ``points``).
 
         Raises:
@@ -216,7 +219,7 @@ class PlannedPoint:
         point_id: Its trace id when done.
     """
 
-    point: Any
+    point: DesignPoint
     key: str
     state: PointState
     point_id: int | None = None

@@ -23,9 +23,13 @@ import os
 import threading
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cad.errors import DataError
+
+if TYPE_CHECKING:
+    from model.spec import DesignPoint, ModelSpec
+    from studies.sweep import SweepSettings
 
 logger = logging.getLogger(__name__)
 
@@ -42,7 +46,7 @@ def _quiet_dask() -> None:
             logging.getLogger(name).setLevel(logging.ERROR)
 
 
-def run_point_task(settings: Any, point: Any, out: Path) -> dict[str, Any]:
+def run_point_task(settings: SweepSettings, point: DesignPoint, out: Path) -> dict[str, Any]:
     """Run one point in a LocalCluster worker (its geometry reused across the worker's tasks)."""
     from studies.sweep_points import point_record, sweep_service
 
@@ -52,7 +56,7 @@ def run_point_task(settings: Any, point: Any, out: Path) -> dict[str, Any]:
     return point_record(run, settings, out)
 
 
-def run_point_remote(spec: Any, point: Any) -> dict[str, Any]:
+def run_point_remote(spec: ModelSpec, point: DesignPoint) -> dict[str, Any]:
     """Run one point on a worker of an existing cluster; return the cycle, not files.
 
     Returns:
@@ -83,8 +87,8 @@ def run_point_remote(spec: Any, point: Any) -> dict[str, Any]:
 
 def _submit_pinned(
     client: Any,
-    spec: Any,
-    points: list[Any],
+    spec: ModelSpec,
+    points: list[DesignPoint],
     task: Callable[..., Any],
     args: Callable[[Any], tuple[Any, ...]],
 ) -> list[Any]:
@@ -117,7 +121,9 @@ def _drain(client: Any, futures: list[Any], handle: Callable[[Any], None]) -> No
         raise
 
 
-def run_on_local_cluster(points: list[Any], settings: Any, out: Path, store: Store) -> None:
+def run_on_local_cluster(
+    points: list[DesignPoint], settings: SweepSettings, out: Path, store: Store
+) -> None:
     """Run points on a private LocalCluster of ``settings.workers`` processes."""
     from dask.distributed import Client, LocalCluster
 
@@ -142,7 +148,9 @@ def run_on_local_cluster(points: list[Any], settings: Any, out: Path, store: Sto
         _drain(client, futures, store)
 
 
-def run_on_scheduler(points: list[Any], settings: Any, out: Path, store: Store) -> None:
+def run_on_scheduler(
+    points: list[DesignPoint], settings: SweepSettings, out: Path, store: Store
+) -> None:
     """Run points on the existing Dask cluster at ``settings.scheduler``.
 
     Raises:

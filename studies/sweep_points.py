@@ -12,10 +12,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from model.service import ModelService, PointRun, Prepared
+    from model.spec import DesignPoint, ModelSpec
     from studies.sweep import SweepSettings
 
 
-def point_params(spec: Any, p: Any) -> dict[str, float]:
+def point_params(spec: ModelSpec, p: DesignPoint) -> dict[str, float]:
     """The trace parameters of a design point: its design variables by column, and amplitude."""
     from model.spec import complete_point
 
@@ -29,7 +31,7 @@ def geometry_folder(out: Path) -> Callable[[str], Path]:
     return lambda label: out / "geometry" / label
 
 
-def mesh_stats_of(prepared: Any) -> dict[str, Any]:
+def mesh_stats_of(prepared: Prepared) -> dict[str, Any]:
     """The mesh figures a point's trace record keeps, from a prepared geometry."""
     if prepared.meshed is None:
         return {}
@@ -43,7 +45,7 @@ def mesh_stats_of(prepared: Any) -> dict[str, Any]:
 
 
 def point_record(
-    run: Any,
+    run: PointRun,
     settings: SweepSettings,
     out: Path,
     *,
@@ -98,8 +100,8 @@ def point_record(
         "mesh_stats": mesh_stats,
         "artifacts": artifacts,
     }
-    if run.ok:
-        result = run.result
+    result = run.result
+    if result is not None:
         title = describe_point(spec, p)
         artifacts["loop_csv"] = write_loop_csv(result, folder / "loop.csv")
         artifacts["loop_png"] = write_loop_png(result, folder / "loop.png", title=title)
@@ -124,7 +126,7 @@ def point_record(
     return rec
 
 
-def sweep_service(out: Path) -> Any:
+def sweep_service(out: Path) -> ModelService:
     """The model service of a sweep folder: results and compliances kept, one geometry at a time."""
     from model.service import ModelService
     from model.store import ResultStore
