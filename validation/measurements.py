@@ -317,7 +317,9 @@ def _case_from_row(table: Table, i: int, cell: dict[str, str], root: Path) -> Ca
     )
 
 
-def read_eta_table(path: Path | str, *, hinge: str | None = None) -> MeasurementSet:
+def read_eta_table(
+    path: Path | str, *, hinge: str | None = None, eta_column: str = "eta"
+) -> MeasurementSet:
     """Read an η-only table (``clearance_mm, preload_N, amplitude_N, eta``), like the paper's Table 1.
 
     The design columns are those of the rows' kind; a kind's column may be absent (the
@@ -330,6 +332,7 @@ def read_eta_table(path: Path | str, *, hinge: str | None = None) -> Measurement
         path: The table.
         hinge: Hinge kind of every row; None: the kind whose design columns the table has
             (the general hinge when none or several fit).
+        eta_column: The column that holds η (``eta_fe`` in the paper's Table 1).
 
     Raises:
         DataError: Missing ``amplitude_N``/``eta`` or every design column, a non-numeric
@@ -346,7 +349,7 @@ def read_eta_table(path: Path | str, *, hinge: str | None = None) -> Measurement
     except ParameterError as err:
         raise DataError(f"{table.path}: {err}") from err
     own = {v.column: v.name for v in kind.design_variables}
-    missing = [c for c in ("amplitude_N", "eta") if c not in table.header]
+    missing = [c for c in ("amplitude_N", eta_column) if c not in table.header]
     if own and not any(c in table.header for c in own):
         missing.append(" or ".join(own))
     if missing:
@@ -355,9 +358,11 @@ def read_eta_table(path: Path | str, *, hinge: str | None = None) -> Measurement
         )
     cases = []
     for i in range(len(table.rows)):
-        v = {c: table_number(table, i, c) for c in ("amplitude_N", "eta")}
-        if not 0 < v["eta"] <= 1:
-            raise DataError(f"{table.where(i, 'eta')}: η must be in (0, 1], got {v['eta']:g}")
+        v = {c: table_number(table, i, c) for c in ("amplitude_N", eta_column)}
+        if not 0 < v[eta_column] <= 1:
+            raise DataError(
+                f"{table.where(i, eta_column)}: η must be in (0, 1], got {v[eta_column]:g}"
+            )
         if v["amplitude_N"] <= 0:
             raise DataError(
                 f"{table.where(i, 'amplitude_N')}: must be > 0, got {v['amplitude_N']:g}"
@@ -379,7 +384,7 @@ def read_eta_table(path: Path | str, *, hinge: str | None = None) -> Measurement
                 hinge=kind.name,
                 values=design,
                 amplitude_n=v["amplitude_N"],
-                eta=v["eta"],
+                eta=v[eta_column],
             )
         )
     if not cases:

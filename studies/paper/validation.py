@@ -1,7 +1,7 @@
 """Apply the validation workflow to the paper's published values.
 
 ``python -m studies.paper.validation --out DIR [--quick]`` takes the paper's numbers as
-they are printed (copies kept in ``validation/data/``): Table 1 (the paper's own FE loss
+they are printed (kept once, in ``rsm/data/``, ``rsm.paper_printed``): Table 1 (the paper's own FE loss
 factors over clearance × amplitude, an η-only table) and the 400 N test point of its
 Fig. 5 (η = 0.0933 measured; the paper does not state that specimen's clearance — its FE
 value there, 0.0891, sits next to Table 1's Δr = 0 entry 0.0895, so Δr = 0 is assumed),
@@ -21,23 +21,41 @@ behave like theirs. ``--quick`` uses the tests' coarse mesh (minutes instead of 
 from __future__ import annotations
 
 import argparse
+import csv
 import dataclasses
 import time
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from model.jsonio import dumps
+from rsm.paper_printed import paper_table_path
+from validation.measurements import Case, MeasurementSet, read_eta_table
 
-TABLE1 = "paper_table1_eta.csv"
-TEST_POINT = "paper_test_point_400N.csv"
+TABLE1 = "paper_table1_general_hinge.csv"
+"""The paper's Table 1 (η of its FE model, column ``eta_fe``), as ``rsm`` keeps it."""
+VALIDATION_POINTS = "paper_validation_points.csv"
+"""The paper's validation test at 400 N (η measured, row ``general, eta``), as ``rsm`` keeps it."""
 SUBSET = ((0.0, 100.0), (0.0, 300.0), (0.0, 500.0), (0.2, 100.0), (0.2, 300.0), (0.2, 500.0),
           (0.4, 100.0), (0.4, 300.0), (0.4, 500.0))  # fmt: skip
 
 
-def data_file(name: str) -> Path:
-    """Path of a data file shipped in ``validation/data``."""
-    return Path(str(resources.files("validation") / "data" / name))
+def table1_set() -> MeasurementSet:
+    """The paper's Table 1 as η-only cases of the general hinge (``row1`` … ``row25``)."""
+    with paper_table_path(TABLE1) as path:
+        return read_eta_table(path, hinge="general", eta_column="eta_fe")
+
+
+def measured_point() -> MeasurementSet:
+    """The paper's measured η of the general hinge at 400 N (Δr 0 assumed) as one case."""
+    with paper_table_path(VALIDATION_POINTS) as path, path.open(newline="") as fh:
+        row = next(
+            r for r in csv.DictReader(fh) if (r["hinge"], r["quantity"]) == ("general", "eta")
+        )
+        case = Case(
+            "test_point", "general", {"clearance_mm": 0.0}, float(row["amplitude_N"]),
+            eta=float(row["test_value"]),
+        )  # fmt: skip
+        return MeasurementSet((case,), path)
 
 
 def _spec(quick: bool) -> Any:
@@ -63,13 +81,11 @@ def run(out: Path, quick: bool) -> dict[str, Any]:
     """Run the comparison and the two diagnoses; write and return the report."""
     from validation.compare import CompareSettings
     from validation.diagnose import diagnose
-    from validation.measurements import read_eta_table
     from validation.workflow import compare_and_write
 
     t0 = time.perf_counter()
     spec = _spec(quick)
-    table1 = read_eta_table(data_file(TABLE1))
-    test = read_eta_table(data_file(TEST_POINT))
+    table1, test = table1_set(), measured_point()
     out.mkdir(parents=True, exist_ok=True)
     report: dict[str, Any] = {"model": {"mesh": dataclasses.asdict(spec.mesh), "mu": spec.cycle.mu}}
     settings = CompareSettings()
