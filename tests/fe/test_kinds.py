@@ -173,3 +173,62 @@ def test_synth_and_compare_with_the_kind(jenkins, tmp_path) -> None:  # type: ig
     report = json.loads((tmp_path / "wrong" / "comparison.json").read_text())
     assert not report["passed"]
     assert {c["slip_force_N"] for c in report["cases"]} == {60.0}
+
+
+def test_diagnose_and_calibrate_find_a_compliance_hidden_in_the_kinds_loops(
+    jenkins, tmp_path, capsys
+) -> None:  # type: ignore[no-untyped-def]
+    """Loops of the element with a series compliance: diagnose names it, calibrate fits it.
+
+    The data come from the element itself with the effect added (noise and offsets of the
+    synthetic machine), so this checks the workflow's plumbing for a plug-in kind, not the
+    physics: the effects that act on the general or bearing hinge's contacts are refused
+    for this kind by its own checks, and the compliance is recovered near its true value.
+    """
+    data = tmp_path / "data"
+    model = _model(tmp_path)
+    hidden = "frame_compliance:compliance_mm_per_n=2e-5"
+    cases = "30:200,400;60:200,400;90:200,400"
+    assert (
+        main(
+            [
+                "synth",
+                str(model),
+                "--effect",
+                hidden,
+                "--cases",
+                cases,
+                "--seed",
+                "4",
+                "--out",
+                str(data),
+            ]
+        )
+        == 0
+    )
+    capsys.readouterr()
+    assert main(["diagnose", str(model), str(data), "--json"]) == 0
+    verdict = json.loads(capsys.readouterr().out)
+    assert verdict["verdict"] == "effect_missing"
+    assert verdict["effects"] == ["frame_compliance"]
+    assert "do not act on the Jenkins pin" in verdict["skipped"]["face_friction"]
+    out = tmp_path / "cal"
+    assert (
+        main(
+            [
+                "calibrate",
+                str(model),
+                str(data),
+                "--effects",
+                "frame_compliance",
+                "--out",
+                str(out),
+                "--json",
+            ]
+        )
+        == 0
+    )
+    from model.file import read_model
+
+    fitted = read_model(next(out.glob("*.toml"))).effects["frame_compliance"]["compliance_mm_per_n"]
+    assert fitted == pytest.approx(2e-5, rel=0.1)  # seed 4: 1.86e-5 (−7 %), the fit on noisy loops
