@@ -16,6 +16,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from fe.kinds import hinge_kind
+from model.paths import file_stem, inside
 from validation.compare import METRIC_LABELS, METRICS, CaseComparison, Comparison, group_name
 from validation.loops import branch_residuals
 
@@ -49,7 +50,12 @@ def _title(c: CaseComparison) -> str:
     k = c.case
     verdict = "pass" if c.passed else "FAIL: " + ", ".join(METRIC_LABELS[m] for m in c.failed)
     where = ", ".join(filter(None, [k.describe(), f"Fg = {k.amplitude_n:g} N"]))
-    return f"{k.case_id}: {where}\n{verdict}"
+    return f"{_short(k.case_id)}: {where}\n{verdict}"
+
+
+def _short(text: str, n: int = 40) -> str:
+    """``text`` cut to ``n`` characters (a case id from a file may be any length)."""
+    return text if len(text) <= n else text[: n - 1] + "…"
 
 
 def plot_case_loops(c: CaseComparison, path: Path) -> Path:
@@ -135,7 +141,7 @@ def plot_error_map(cmp: Comparison, path: Path, metric: str = "eta") -> Path:
         else:
             ax.scatter(xi, yi, s=420, marker="x", color="k", linewidths=1.5)
         ax.annotate(
-            f"{ei:+.1f} %\n{c.case.case_id}",
+            f"{ei:+.1f} %\n{_short(c.case.case_id, 16)}",
             (xi, yi),
             xytext=(0, 17),
             textcoords="offset points",
@@ -277,7 +283,9 @@ def _log_axes(ax: Axes) -> None:
 def write_comparison_plots(cmp: Comparison, out: Path) -> dict[str, Path]:
     """Write every picture of a comparison under ``out``; return name → path."""
     files = {
-        f"loop_{c.case.case_id}": plot_case_loops(c, out / "loops" / f"{c.case.case_id}.png")
+        f"loop_{c.case.case_id}": plot_case_loops(
+            c, inside(out, out / "loops" / f"{file_stem(c.case.case_id)}.png")
+        )
         for c in cmp.cases
         if c.measured_loop is not None
     }

@@ -12,16 +12,13 @@ from __future__ import annotations
 import csv
 import json
 import math
-import sys
 from pathlib import Path
 
 import pytest
 
 from fe.cycle.protocol import CycleSettings
-from fe.kinds import HingeKind, hinge_kind, kind_names, unregister_hinge_kind
+from fe.kinds import HingeKind, hinge_kind, kind_names
 from studies.cli.main import main
-
-PLUGINS = Path(__file__).parents[1] / "plugins"
 
 MODEL = """[hinge]
 kind = "jenkins_pin"
@@ -32,14 +29,6 @@ slip_force_n = {slip}
 [cycle]
 increments_per_stage = 12
 """
-
-
-@pytest.fixture
-def jenkins(monkeypatch: pytest.MonkeyPatch):  # type: ignore[no-untyped-def]
-    monkeypatch.syspath_prepend(str(PLUGINS))
-    yield hinge_kind("jenkins_pin")
-    unregister_hinge_kind("jenkins_pin")
-    sys.modules.pop("hingelab_jenkins", None)
 
 
 def _closed_form(params, amplitude_n: float) -> tuple[float, float]:  # type: ignore[no-untyped-def]
