@@ -218,8 +218,8 @@ def runs(idx: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray
 def is_subset(a: npt.NDArray[np.int64], b: npt.NDArray[np.int64]) -> bool:
     """Whether every value of ``a`` is in ``b``, both sorted ascending, shapes (n_a,), (n_b,).
 
-    A binary search per value of ``a`` (``np.isin`` sorts both: 0.1 ms at a few hundred
-    points, paid per Newton step and per increment).
+    A binary search per value of ``a`` (``np.isin`` sorts both, a cost paid per Newton step
+    and per increment: benchmarks/bench_contact.txt, 'is_subset').
     """
     if len(a) == 0:
         return True
