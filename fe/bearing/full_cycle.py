@@ -376,8 +376,8 @@ def run_full_cycle(
     t0 = time.perf_counter()
     law = meshed_ball_law(system, settings.mu, grid)
     t_rig = time.perf_counter() - t0
-    # one BLAS thread (settings.blas_threads) for the thousands of small local solves: with
-    # two, a default-mesh cycle took 149 s against 61 s (the rig's build above keeps them)
+    # one BLAS thread (settings.blas_threads) for the thousands of small local solves (two are
+    # slower: benchmarks/bench_bearing_full.txt, 'run_full_cycle'); the rig's build above keeps them
     with threadpool_limits(limits=settings.blas_threads, user_api="blas"):
         pre, state = full_preload(system, law, preload_n, settings)
         t_pre = time.perf_counter() - t0 - t_rig

@@ -29,20 +29,16 @@ LU_THREADED_MIN = 2000
 """Smallest reduced Jacobian factorised with :func:`lu_threads` threads.
 
 The rest of the contact phase runs on ``CycleSettings.blas_threads`` (1) but for the
-large products (:func:`wide`): its many small operations and its triangular solves were
-3.4× slower with two threads (level 0, benchmarks/bench_cycle.py); threaded triangular
-solves (scipy's OpenBLAS, while numpy's spins from a product) made the level-1
-zero-clearance contact phase 70 → 78 s. A large LU is compute-bound and gains: measured on this
-2-core machine, 1 → 2 threads, n = 1000 / 3000 / 6000: 0.045 → 0.037 s, 0.82 → 0.50 s,
-5.3 → 3.1 s."""
+large products (:func:`wide`): its many small operations and its triangular solves are
+slower with two threads (threaded triangular solves run on scipy's OpenBLAS as numpy's
+spins from a product). A large LU is compute-bound and gains. Chosen by measurement
+(benchmarks/bench_cycle.txt, 'LU_THREADED_MIN')."""
 
 
 PRODUCT_THREADED_MIN = 1_000_000
 """Products with a dense matrix of at least this many entries run on :func:`lu_threads`
-threads (:func:`wide`). They are memory-bound and a second core doubles the bandwidth:
-matrix-vector products on this 2-core machine, 1 → 2 threads, n = 1 000 / 2 000 / 5 100:
-0.28 → 0.14, 1.1 → 0.58, 13.5 → 6.1 ms (float64), 5.6 → 2.3 ms (n = 5 100, float32).
-Default hinge, Δr 0, contact phase: level 1 76.8 → 69.9 s, level 0 unchanged (4.7 s)."""
+threads (:func:`wide`). They are memory-bound and a second core doubles the bandwidth.
+Chosen by measurement (benchmarks/bench_cycle.txt, 'PRODUCT_THREADED_MIN')."""
 
 _CONTROLLER: list[ThreadpoolController] = []
 
@@ -177,12 +173,12 @@ GATHER_ROWS = 256
 def gather_block(W: FloatArray, idx: npt.NDArray[np.int64]) -> FloatArray:
     """Return ``W[np.ix_(idx, idx)]``, C-ordered.
 
-    ``np.ix_`` indexing of a large ``W`` went through numpy's generic two-axis path: at
-    5 700 of 9 400 rows it took 1 s. Contact points come in runs of consecutive indices
-    (a contact zone is numbered zone by zone: about 50 runs at level 0 of the hinge), so
-    the block is copied as rectangles ``W[run_i, run_j]`` (strided copies: 2 000 points in
-    55 runs of a 9 408² ``W`` in 0.05 s); with many runs, by chunks of rows whose columns
-    are taken straight into the result (0.11 s there).
+    ``np.ix_`` indexing of a large ``W`` goes through numpy's generic two-axis path, which
+    is slow there. Contact points come in runs of consecutive indices (a contact zone is
+    numbered zone by zone: about 50 runs at level 0 of the hinge), so the block is copied
+    as rectangles ``W[run_i, run_j]`` (strided copies); with many runs, by chunks of rows
+    whose columns are taken straight into the result. Timings:
+    benchmarks/bench_contact_profile.txt, 'gather_block'.
 
     Args:
         W: Square matrix, shape (n, n), float64.
@@ -222,8 +218,8 @@ def runs(idx: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray
 def is_subset(a: npt.NDArray[np.int64], b: npt.NDArray[np.int64]) -> bool:
     """Whether every value of ``a`` is in ``b``, both sorted ascending, shapes (n_a,), (n_b,).
 
-    A binary search per value of ``a`` (``np.isin`` sorts both: 0.1 ms at a few hundred
-    points, paid per Newton step and per increment).
+    A binary search per value of ``a`` (``np.isin`` sorts both, a cost paid per Newton step
+    and per increment: benchmarks/bench_contact.txt, 'is_subset').
     """
     if len(a) == 0:
         return True

@@ -84,8 +84,9 @@ def coulomb_step(
         mu: Friction coefficient ``μ >= 0``, one for all points or shape (m,), float64.
         r: Augmentation per point, shape (m,), float64 [N/mm], all > 0.
         tangent: Whether to form the tangent ``D``; if False (the Newton loop's
-            residuals, which never read it: 0.02 against 0.08 ms at 350 points) it is
-            returned empty, shape (0, 3, 3).
+            residuals, which never read it and are cheaper without it:
+            benchmarks/bench_contact.txt, 'coulomb_step') it is returned empty,
+            shape (0, 3, 3).
 
     Returns:
         Traction, status and tangent; see :class:`CoulombStep`.

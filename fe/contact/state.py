@@ -327,10 +327,10 @@ def fingerprint(W: FloatArray) -> float:
     One pass without a temporary: NaN and inf propagate into the sum (an overflowing sum
     of finite entries falls back to the entrywise check of the caller). It is the
     finiteness check and the fingerprint that tells the caches keyed by ``W`` whether it
-    changed in place, so it is taken at every increment (0.06 s a pass at level 1 of the
-    hinge, 3 s a cycle) unless ``W`` cannot change: read-only and owning its data, or a
-    view whose every base is (the hinge's condensed ``W`` is made so). Then the sum of
-    its first increment is reused while the array lives.
+    changed in place, so it is taken at every increment (a full pass over ``W``:
+    benchmarks/bench_cycle.txt, 'fingerprint') unless ``W`` cannot change: read-only and
+    owning its data, or a view whose every base is (the hinge's condensed ``W`` is made
+    so). Then the sum of its first increment is reused while the array lives.
     """
     frozen = _unwritable(W)
     if frozen:

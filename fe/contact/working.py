@@ -20,8 +20,8 @@ The set is kept per ``W`` between increments while it still holds the points nee
 at most ``SLACK`` spare, so that the restricted ``W`` — and the Krylov workspace keyed by
 it, with its LU — carry over. Only one set of ``W``'s blocks lives at a time: a solve on a
 working set drops the whole ``W``'s Krylov workspace, a solve on all points drops the kept
-set, and the base LU is handed on renumbered (level 1, zero clearance: the contact phase's
-memory peak 1.57 W → 1.11 W, with the same iterations).
+set, and the base LU is handed on renumbered (a lower memory peak with the same
+iterations: benchmarks/bench_cycle.txt, 'fe.contact.working').
 """
 
 from __future__ import annotations
@@ -50,10 +50,9 @@ MAX_FRACTION = 0.5
 """A working set of more than this fraction of the points is not used (solve whole).
 
 Gathering ``W`` on a set costs a pass over its rows and fresh memory for the block (page
-faults included: 0.3–1.1 s at level 1 of the hinge for 70–85 % of the points), while the
-products it spares over an increment's few iterations are worth ~0.1 s there. Default
-hinge, level 1, Δr 0, contact phase with 0.75 / 0.6 / 0.5 / 0.4: 82 / 79 / 76 / 74 s
-(25 / 17 / 14 / 13 gathers); at Δr 0.1 mm the sets are small and nothing changed."""
+faults included), while the products it spares over an increment's few iterations are
+worth less than that when it holds most of the points. Chosen by measurement
+(benchmarks/bench_contact_profile.txt, 'MAX_FRACTION')."""
 
 SLACK = 1.3
 """A kept working set may hold this many times the points needed (else it is rebuilt)."""
@@ -62,7 +61,7 @@ HEADROOM = 0.15
 """A rebuilt working set takes this fraction of extra points, the open ones nearest to
 closing: while a contact zone grows a few points per increment (the stick/slip
 transitions of a zero-clearance cycle), a set of exactly the points needed had to be
-gathered again at every increment (level 1: 25 gathers of ``W``'s rows, 11 s of 99)."""
+gathered again at every increment (benchmarks/bench_contact_profile.txt, 'HEADROOM')."""
 
 ROUNDS = 3
 """Working-set solves per increment before the full problem is solved from there."""

@@ -51,8 +51,8 @@ class CycleSettings:
             the load line); the others are checked to stay open at every load peak, and
             the cycle stops with a clear error if one closed. 0 solves for every point.
         blas_threads: BLAS threads for the dense contact solves. Their matrices are a
-            few hundred to a few thousand wide, where two threads on a shared 2-core
-            machine measured 5× slower than one (benchmarks/bench_cycle.py).
+            few hundred to a few thousand wide, where one thread is faster than two
+            (benchmarks/bench_cycle.txt, 'CycleSettings.blas_threads').
     """
 
     amplitude_n: float = 400.0

@@ -58,8 +58,8 @@ def _point_pypardiso_at_mkl() -> None:
     """Tell pypardiso where the venv's ``libmkl_rt`` is, if it is where pip puts it.
 
     Without ``PYPARDISO_MKL_RT`` pypardiso's import and every ``PyPardisoSolver()`` glob
-    ``sys.prefix/lib*/**`` recursively — 0.6 s each in this venv, 1.2 s of every process
-    that factorises (a fifth of the default cycle's floor). ``sys.prefix/lib`` is where
+    ``sys.prefix/lib*/**`` recursively, a cost every process that factorises pays
+    (benchmarks/bench_cycle.txt, '_point_pypardiso_at_mkl'). ``sys.prefix/lib`` is where
     the ``mkl`` wheel installs it; elsewhere pypardiso's own search still runs.
     """
     if os.environ.get("PYPARDISO_MKL_RT"):
@@ -250,9 +250,9 @@ def inverse_block(
     ``S = K_bb − K_bi K_ii⁻¹ K_ib`` (b = idx), which PARDISO forms during a partial
     factorisation with the b DOFs ordered last, and ``(K⁻¹)_bb = S⁻¹`` (a dense Cholesky
     inverse). That costs about one factorisation plus O(b³), instead of b sparse
-    triangular solves: 3 600 DOFs of a 159k-DOF hinge in 2.4 s + 5 s instead of ~150 s
-    (benchmarks/bench_assembly.py). Without PARDISO, unit right-hand sides are solved in
-    blocks of ``block_rhs`` with ``factor`` (built here if None).
+    triangular solves (benchmarks/bench_assembly.txt, 'inverse_block'). Without PARDISO,
+    unit right-hand sides are solved in blocks of ``block_rhs`` with ``factor`` (built
+    here if None).
 
     Args:
         K_ff: Symmetric positive definite matrix, shape (n, n), float64.
@@ -315,8 +315,8 @@ SYMMETRISE_BLOCK = 512
 def _symmetrise_upper(A: FloatArray) -> FloatArray:
     """Fill the lower triangle of ``A`` from its upper one, in place, block by block.
 
-    ``np.triu(A) + np.triu(A, 1).T`` made three full temporaries: 4.2 s for the 9 408²
-    compliance of level 1, against 0.44 s copying blocks of the upper triangle down.
+    ``np.triu(A) + np.triu(A, 1).T`` makes three full temporaries; copying blocks of the
+    upper triangle down makes none (benchmarks/bench_cycle.txt, '_symmetrise_upper').
     """
     n = A.shape[0]
     for i0 in range(0, n, SYMMETRISE_BLOCK):
