@@ -272,22 +272,48 @@ def _record_sigma(
         return {"eta": math.sqrt(f.eta_rel_sigma**2 + floor**2 + rep.get("eta", 0.0) ** 2)}
     sig = feature_sigma([meas], f, None)  # absolute: δ_max, W, opening (noise ⊕ floor)
     feats = loop_features(meas)
-    r_delta = float(sig[0] / abs(feats[0]))
-    r_W = float(sig[1] / max(abs(feats[1]), 1e-300))
+    r_delta = _ratio(sig[0], feats[0])
+    r_W = _ratio(sig[1], feats[1])
     m = meas.metrics
     peak = max(abs(m.disp_at_peak_mm), 1e-300)
     # δ(+Fg) is one sample (δ_max averages two peaks): its full displacement noise counts
     s_peak = math.hypot(
-        noise_level(meas.displacement_mm), m.delta_max_mm / m.f_max_n * noise_level(meas.force_n)
+        noise_level(meas.displacement_mm),
+        _ratio(m.delta_max_mm, m.f_max_n) * noise_level(meas.force_n),
     )
     base = {
-        "disp_at_peak_mm": math.hypot(s_peak, f.rel_floor * m.delta_max_mm) / peak,
+        "disp_at_peak_mm": _ratio(math.hypot(s_peak, f.rel_floor * m.delta_max_mm), peak),
         "W_cycle_Nmm": r_W,
         "eta": math.hypot(r_W, r_delta),
         "secant_stiffness_N_per_mm": r_delta,
         "rms_loop": s.default_rel_uncertainty if "rms_loop" not in rep else 0.0,
     }
     return {m: math.hypot(v, rep.get(m, 0.0)) for m, v in base.items()}
+
+
+def relative_error(model: float, measured: float) -> float:
+    """``(model − measured) / |measured|``; 0 when both are 0, ±inf when only ``measured`` is.
+
+    A metric the record cannot give a scale for (a zero loop area) is a failure of that
+    metric with an infinite error, never a division by zero after the model has run.
+    """
+    if measured != 0.0 and math.isfinite(measured):
+        return (model - measured) / abs(measured)
+    if model == measured:
+        return 0.0
+    return math.copysign(math.inf, model - measured) if math.isfinite(model) else math.nan
+
+
+def _within(error: float, band: float) -> bool:
+    """A metric passes when its error is finite and inside the band (an error without a
+    scale, ±inf or NaN, fails whatever the uncertainty).
+    """
+    return math.isfinite(error) and abs(error) <= band
+
+
+def _ratio(a: float, b: float) -> float:
+    """``a / |b|``, inf where ``b`` is 0 (a relative σ without a scale)."""
+    return float(a) / abs(float(b)) if b != 0.0 and math.isfinite(b) else math.inf
 
 
 def _case_errors(
@@ -298,11 +324,11 @@ def _case_errors(
     if meas is None:
         if case.eta is None:
             raise DataError(f"case {case.case_id!r}: neither a loop nor η to compare with")
-        return {"eta": case.eta}, mod, {"eta": (mod["eta"] - case.eta) / abs(case.eta)}, None
+        return {"eta": case.eta}, mod, {"eta": relative_error(mod["eta"], case.eta)}, None
     mea = meas.metrics.as_dict()
-    errors = {m: (mod[m] - mea[m]) / abs(mea[m]) for m in _LOOP_METRICS}
+    errors = {m: relative_error(mod[m], mea[m]) for m in _LOOP_METRICS}
     rms = loop_distance(meas, model)
-    errors["rms_loop"] = rms / meas.metrics.delta_max_mm
+    errors["rms_loop"] = relative_error(rms + meas.metrics.delta_max_mm, meas.metrics.delta_max_mm)
     return mea, mod, errors, rms
 
 
@@ -347,7 +373,7 @@ def compare(
         else:
             unc = {m: rep.get(m, s.default_rel_uncertainty) for m in errors}
         unc = {m: max(unc[m], s.min_rel_uncertainty) for m in errors}
-        failed = tuple(m for m in METRICS if m in errors and not abs(errors[m]) <= s.k * unc[m])
+        failed = tuple(m for m in METRICS if m in errors and not _within(errors[m], s.k * unc[m]))
         mod_all = {**mod, **{f"fe_{k}": float(v) for k, v in res.metrics.items()}}
         out.append(
             CaseComparison(case, mea, mod_all, errors, unc, source, failed, rms, loops[cid], model)

@@ -1,0 +1,94 @@
+"""Property-based tests: loop metrics and the comparison never fail with anything but a
+named data error, whatever the loop (degenerate, random, zero area, tiny, flat)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cad.errors import DataError, ParameterError
+from validation.compare import ModelResult, compare
+from validation.loop_files import Loop
+from validation.loops import process_loop
+from validation.measurements import Case, MeasurementSet
+
+EXPECTED = (DataError, ParameterError)
+
+
+def _cycle(
+    amp: float, stiff: float, width: float, n: int, skew: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """0 → +Fg → −Fg → +Fg, n samples a branch: δ = F/k ± width (a parallelogram, skewed)."""
+    up = np.linspace(0.0, amp, n)
+    down = np.linspace(amp, -amp, 2 * n)[1:]
+    back = np.linspace(-amp, amp, 2 * n)[1:]
+    force = np.concatenate([up, down, back])
+    disp = force / stiff
+    bulge = width * (1 - np.abs(force) / amp) ** skew
+    down = slice(n, 3 * n - 1)
+    disp[down] += bulge[down]  # unloading runs right of loading: the loop turns the passive way
+    disp[3 * n - 1 :] -= bulge[3 * n - 1 :]
+    return force, disp
+
+
+loops = st.builds(
+    _cycle,
+    amp=st.floats(1e-6, 1e5),
+    stiff=st.floats(1e-3, 1e9),
+    width=st.one_of(st.just(0.0), st.floats(0.0, 1.0)),
+    n=st.integers(1, 40),
+    skew=st.floats(0.1, 4.0),
+)
+
+
+def _case(force: np.ndarray, disp: np.ndarray, amp: float) -> Case:
+    return Case("c", "general", {"clearance_mm": 0.0}, amp, loop=Loop(force, disp, None, "test"))
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(loops)
+def test_process_loop_returns_metrics_or_a_data_error(loop) -> None:  # type: ignore[no-untyped-def]
+    force, disp = loop
+    try:
+        p = process_loop(force, disp, "test")
+    except EXPECTED:
+        return
+    m = p.metrics
+    assert math.isfinite(m.delta_max_mm) or math.isnan(m.delta_max_mm)
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(measured=loops, model=loops)
+def test_compare_of_any_two_loops_gives_a_verdict_or_a_data_error(measured, model) -> None:  # type: ignore[no-untyped-def]
+    amp = float(np.max(measured[0]))
+    case = _case(*measured, amp)
+    result = ModelResult(Loop(model[0], model[1], None, "model"))
+    try:
+        cmp = compare({"c": result}, MeasurementSet((case,), Path(".")))
+    except EXPECTED:
+        return
+    (c,) = cmp.cases
+    assert isinstance(c.passed, bool)
+    for m, e in c.errors.items():  # an error that cannot be formed is a failure, not a pass
+        if not math.isfinite(e):
+            assert m in c.failed
+
+
+def test_a_zero_area_loop_is_a_finding_not_a_crash() -> None:
+    """The issue's probe: a 4-row loop 0, +Fg, −Fg, +Fg of zero area."""
+    force = np.array([0.0, 400.0, -400.0, 400.0])
+    disp = force / 1e5
+    case = _case(force, disp, 400.0)
+    model_force, model_disp = _cycle(400.0, 1e5, 1e-4, 10, 1.0)
+    cmp = compare(
+        {"c": ModelResult(Loop(model_force, model_disp, None, "m"))},
+        MeasurementSet((case,), Path(".")),
+    )
+    (c,) = cmp.cases
+    assert not c.passed
+    assert "W_cycle_Nmm" in c.failed
