@@ -305,8 +305,9 @@ def relative_error(model: float, measured: float) -> float:
 
 
 def _within(error: float, band: float) -> bool:
-    """A metric passes when its error is finite and inside the band (an error without a
-    scale, ±inf or NaN, fails whatever the uncertainty).
+    """A metric passes when its error is finite and inside the band.
+
+    An error without a scale (±inf or NaN) fails, whatever the uncertainty.
     """
     return math.isfinite(error) and abs(error) <= band
 
