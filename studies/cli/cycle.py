@@ -26,7 +26,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         type=Path,
         default=None,
         metavar="MODEL.toml",
-        help="run the model a model file describes (geometry, mesh, materials, μ, protocol)",
+        help="run the model a model file describes (geometry, mesh, materials, μ, protocol; "
+        "default: the options below)",
     )
     p.add_argument(
         "--amplitude",

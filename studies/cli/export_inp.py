@@ -19,12 +19,26 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
     p.add_argument("--out", type=Path, required=True, metavar="FILE.inp", help="deck to write")
     p.add_argument(
-        "--amplitude", type=float, default=None, metavar="FG", help="force amplitude [N]"
+        "--amplitude",
+        type=float,
+        default=None,
+        metavar="FG",
+        help="force amplitude [N] (default: the model file's [cycle] amplitude_n)",
     )
     p.add_argument(
-        "--clearance", type=float, default=None, metavar="MM", help="radial clearance [mm]"
+        "--clearance",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="radial clearance [mm] (default: the model file's)",
     )
-    p.add_argument("--mu", type=float, default=None, metavar="X", help="friction coefficient")
+    p.add_argument(
+        "--mu",
+        type=float,
+        default=None,
+        metavar="X",
+        help="friction coefficient (default: the model file's [friction] mu)",
+    )
     p.add_argument(
         "--contact",
         choices=("node", "surface", "mortar"),

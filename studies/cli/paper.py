@@ -29,10 +29,16 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="the modified hinge's interfaces: frictional fits as the paper's ABAQUS model "
         "(contact, default) or tied (bonded)",
     )
-    p.add_argument("--mu", type=float, default=0.2, metavar="X", help="friction coefficient (0.2)")
+    p.add_argument(
+        "--mu", type=float, default=0.2, metavar="X", help="friction coefficient (default 0.2)"
+    )
     p.add_argument("--workers", type=int, default=1, metavar="N", help="Dask workers (default 1)")
     p.add_argument(
-        "--points", type=int, default=0, metavar="K", help="smoke run: K amplitudes per hinge"
+        "--points",
+        type=int,
+        default=0,
+        metavar="K",
+        help="smoke run: K amplitudes per hinge (default 0: every point)",
     )
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
     p.set_defaults(func=run)

@@ -52,20 +52,36 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     p.add_argument("--json", action="store_true", help="print repeatability.json")
     p.add_argument(
-        "--eta", default=None, metavar="ETA", help="loss factor: a number, or NAME=VALUE,..."
+        "--eta",
+        default=None,
+        metavar="ETA",
+        help="loss factor: a number, or NAME=VALUE,... (default: none, no η correlation)",
     )
-    p.add_argument("--hinges", type=Path, default=None, metavar="TABLE.csv", help="hinge, eta")
     p.add_argument(
-        "--label", default=None, metavar="NAME", help="hinge name if the file has no hinge column"
+        "--hinges",
+        type=Path,
+        default=None,
+        metavar="TABLE.csv",
+        help="a table of hinge, eta (default: none)",
+    )
+    p.add_argument(
+        "--label",
+        default=None,
+        metavar="NAME",
+        help="hinge name if the file has no hinge column (default: the file's stem)",
     )
     p.add_argument(
         "--unit",
         choices=[u.value for u in rp.ReadingUnit],
         default=None,
-        help="unit of a reading column not named reading_um / reading_mm",
+        help="unit of a reading column not named reading_um / reading_mm (default: from the column name)",
     )
     p.add_argument(
-        "--confidence", type=float, default=0.95, metavar="C", help="interval coverage (0.95)"
+        "--confidence",
+        type=float,
+        default=0.95,
+        metavar="C",
+        help="interval coverage (default 0.95)",
     )
     p.set_defaults(func=run)
 

@@ -33,9 +33,19 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         metavar="NAME[:PARAM=VALUE,...]",
         help="a hidden effect (repeatable); absent parameters take their defaults",
     )
-    p.add_argument("--noise-force", type=float, default=0.2, metavar="N", help="force noise σ [N]")
     p.add_argument(
-        "--noise-disp", type=float, default=5e-5, metavar="MM", help="displacement noise σ [mm]"
+        "--noise-force",
+        type=float,
+        default=0.2,
+        metavar="N",
+        help="force noise σ [N] (default 0.2)",
+    )
+    p.add_argument(
+        "--noise-disp",
+        type=float,
+        default=5e-5,
+        metavar="MM",
+        help="displacement noise σ [mm] (default 5e-5)",
     )
     p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
     p.add_argument(

@@ -230,3 +230,24 @@ def test_compare_fails_on_mismatch(tmp_path, capsys):
     report = _no_nan((out / "comparison.json").read_text())
     assert isinstance(report, dict)
     assert report["cases"][0]["passed"] is False
+
+
+def test_every_option_help_states_its_default():
+    """Each optional value of every command says what it is when not given (issue 33)."""
+    import argparse
+
+    from studies.cli.main import build_parser
+
+    parser = build_parser()
+    commands = next(a for a in parser._actions if a.dest == "command").choices
+    flags = (argparse._HelpAction, argparse._StoreTrueAction, argparse._StoreFalseAction)
+    silent = [
+        f"{name} {'/'.join(a.option_strings)}"
+        for name, sub in commands.items()
+        for a in sub._actions
+        if a.option_strings
+        and not a.required
+        and not isinstance(a, flags)
+        and "default" not in (a.help or "")
+    ]
+    assert not silent, f"options whose help gives no default: {silent}"
