@@ -50,6 +50,10 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+CHATTY_LIBRARIES = ("build123d", "matplotlib", "PIL", "pyvista", "numexpr")
+"""Third-party loggers kept at WARNING even with -v (build123d logs every face it makes)."""
+
+
 def _version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -74,6 +78,8 @@ def main(argv: list[str] | None = None) -> int:
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
+    for name in CHATTY_LIBRARIES:  # their INFO lines say nothing a user can act on
+        logging.getLogger(name).setLevel(logging.WARNING)
     try:
         return int(args.func(args))
     except HingelabError as err:

@@ -251,3 +251,29 @@ def test_every_option_help_states_its_default():
         and "default" not in (a.help or "")
     ]
     assert not silent, f"options whose help gives no default: {silent}"
+
+
+def test_verbose_logs_hingelab_not_third_party_chatter(tmp_path):
+    """-v shows hingelab's progress; build123d's INFO lines (one per face) stay out (issue 33)."""
+    import subprocess
+    import sys
+
+    argv = [
+        "-v",
+        "mesh",
+        "--size",
+        "4",
+        "--contact-size",
+        "2",
+        "--no-picture",
+        "--out",
+        str(tmp_path),
+    ]
+    run = subprocess.run(
+        [sys.executable, "-m", "studies.cli.main", *argv],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert "INFO" in run.stderr  # -v does log
+    assert "build123d" not in run.stderr
