@@ -95,18 +95,40 @@ class Table:
     header: tuple[str, ...]
     rows: tuple[tuple[str, ...], ...]
     lines: tuple[int, ...]  # 1-based line number of each row in the file
+    decimal_comma: bool = False  # numbers written 1,5 (a ';' or tab separated file)
 
     def where(self, i: int, column: str) -> str:
         """Where a cell is, for messages: file, row (1-based), line and column."""
         return f"{self.path}: row {i + 1} (line {self.lines[i]}), column {column}"
 
 
+def csv_dialect(path: Path) -> tuple[str, bool]:
+    """The separator of a plain CSV and whether its numbers use a decimal comma.
+
+    Read from the header (the first non-empty line): a ``;``-separated header, as
+    spreadsheets write in locales with a decimal comma, or a tab-separated one, means the
+    data may write ``1,5`` for 1.5; a ``,``-separated header means ``.`` decimals.
+    """
+    with open(path, encoding="utf-8-sig") as fh:
+        header = next((line for line in fh if line.strip()), "")
+    if "\t" in header:
+        return "\t", True
+    if ";" in header and "," not in header:
+        return ";", True
+    return ",", False
+
+
 def read_table(path: Path) -> Table:
-    """Read a plain CSV: the first non-empty line is the header; blank lines are skipped."""
+    """Read a plain CSV: the first non-empty line is the header; blank lines are skipped.
+
+    The separator is ``,``, ``;`` or a tab (``csv_dialect``); with ``;`` or a tab, numbers
+    may use a decimal comma.
+    """
     if not path.is_file():
         raise DataError(f"{path}: file not found")
+    delimiter, decimal_comma = csv_dialect(path)
     with open(path, newline="", encoding="utf-8-sig") as fh:
-        reader = csv.reader(fh)
+        reader = csv.reader(fh, delimiter=delimiter)
         header: tuple[str, ...] | None = None
         rows, lines = [], []
         for line_no, raw in enumerate(reader, start=1):
@@ -117,8 +139,15 @@ def read_table(path: Path) -> Table:
                 header = cells
                 continue
             if len(cells) != len(header):
+                hint = (
+                    "; a decimal comma in a comma-separated file splits numbers: separate "
+                    "the columns with ';' (or write decimal points)"
+                    if delimiter == "," and len(cells) > len(header)
+                    else ""
+                )
                 raise DataError(
-                    f"{path}: line {line_no} has {len(cells)} fields, the header has {len(header)}"
+                    f"{path}: line {line_no} has {len(cells)} fields, the header has "
+                    f"{len(header)}{hint}"
                 )
             rows.append(cells)
             lines.append(line_no)
@@ -127,7 +156,7 @@ def read_table(path: Path) -> Table:
     dupes = sorted({h for h in header if header.count(h) > 1})
     if dupes:
         raise DataError(f"{path}: duplicate column(s) {dupes}")
-    return Table(path, header, tuple(rows), tuple(lines))
+    return Table(path, header, tuple(rows), tuple(lines), decimal_comma)
 
 
 def _find_column(
@@ -179,7 +208,10 @@ def _finite(text: str, where: str, shown: str | None = None) -> float:
 
 def table_number(table: Table, i: int, column: str) -> float:
     """The finite number in row ``i``, ``column`` (DataError naming the cell otherwise)."""
-    return _finite(table.rows[i][table.header.index(column)], table.where(i, column))
+    text = table.rows[i][table.header.index(column)]
+    if table.decimal_comma:
+        return _finite(text.replace(",", "."), table.where(i, column), text)
+    return _finite(text, table.where(i, column))
 
 
 def _column(table: Table, column: str, factor: float) -> FloatArray:
@@ -231,12 +263,25 @@ def read_loop_csv(path: Path | str) -> Loop:
         )
     if len(table.rows) < 4:
         raise DataError(f"{table.path}: a loop needs at least 4 rows, got {len(table.rows)}")
-    return Loop(
-        _column(table, *f_col),
-        _column(table, *d_col),
-        None if t_col is None else _column(table, *t_col),
-        str(table.path),
-    )
+    time = None if t_col is None else _column(table, *t_col)
+    if time is not None:
+        check_time(time, str(table.path), t_col[0] if t_col else "time", table.lines)
+    return Loop(_column(table, *f_col), _column(table, *d_col), time, str(table.path))
+
+
+def check_time(time_s: FloatArray, where: str, column: str, lines: Sequence[int]) -> None:
+    """Refuse a time column that does not increase (a record stitched or sorted wrongly).
+
+    Raises:
+        DataError: Naming the file, the line where time stops increasing and both values.
+    """
+    back = np.flatnonzero(np.diff(time_s) <= 0)
+    if back.size:
+        k = int(back[0]) + 1
+        raise DataError(
+            f"{where}: line {lines[k]}, column {column}: time does not increase "
+            f"({time_s[k - 1]:g} s, then {time_s[k]:g} s); a record's samples must be in time order"
+        )
 
 
 BLUEHILL_COLUMNS: dict[str, tuple[str, ...]] = {
@@ -334,7 +379,10 @@ def read_bluehill(path: Path | str) -> Loop:
         )
     if len(data) < 4:
         raise DataError(f"{path}: a loop needs at least 4 data lines, got {len(data)}")
-    return Loop(columns["force"], columns["displacement"], columns.get("time"), str(path))
+    time = columns.get("time")
+    if time is not None:
+        check_time(time, str(path), "Time", [line for line, _ in data])
+    return Loop(columns["force"], columns["displacement"], time, str(path))
 
 
 _THOUSANDS = re.compile(r"[+-]?[1-9]\d{0,2}(,\d{3})+(\.\d*)?([eE][+-]?\d+)?")
