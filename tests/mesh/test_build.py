@@ -10,12 +10,10 @@ import pytest
 from cad.errors import MeshQualityError
 from cad.general import GeneralHingeParams, make_general_hinge
 from fe.kinds import hinge_kind
+from mesh.build import mesh_hinge
 from mesh.hexmesh import HexMesh
 from mesh.quality import check_quality, hex_volumes
 from mesh.settings import MeshSettings
-
-pytest.importorskip("gmsh")
-from mesh.build import mesh_hinge
 
 
 @pytest.fixture(scope="module")

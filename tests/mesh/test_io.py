@@ -7,10 +7,8 @@ import numpy as np
 import pytest
 
 from cad.general import GeneralHingeParams, make_general_hinge
-from mesh.io import read_msh_summary, write_msh, write_vtu
-
-pytest.importorskip("gmsh")
 from mesh.build import mesh_hinge
+from mesh.io import read_msh_summary, write_msh, write_vtu
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +28,8 @@ def test_msh_round_trip(mesh, tmp_path):
 
 
 def test_msh_opens_in_gmsh_with_names(mesh, tmp_path):
-    gmsh = pytest.importorskip("gmsh")
+    import gmsh
+
     path = write_msh(mesh, tmp_path / "m.msh")
     gmsh.initialize()
     try:

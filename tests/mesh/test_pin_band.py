@@ -10,11 +10,9 @@ import pytest
 from cad.errors import ParameterError
 from cad.general import GeneralHingeParams, make_general_hinge
 from fe.kinds import hinge_kind
-from mesh.settings import MeshSettings
-
-pytest.importorskip("gmsh")
 from mesh.band import corner_sines
 from mesh.build import mesh_hinge, mesh_part
+from mesh.settings import MeshSettings
 
 O_GRID = float("inf")
 

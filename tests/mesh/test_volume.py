@@ -1,18 +1,16 @@
 import math
 
+import build123d as bd
 import numpy as np
 import pytest
 
-pytest.importorskip("gmsh")
-bd = pytest.importorskip("build123d")
-
-from cad.errors import GeometryError, MeshQualityError, ParameterError  # noqa: E402
-from cad.model import EVERYWHERE  # noqa: E402
-from cad.surfaces import Cylinder, Plane, Sphere, Torus  # noqa: E402
-from mesh.facets import HEX_FACES, boundary_facets, select_facets  # noqa: E402
-from mesh.gmsh_session import gmsh_session  # noqa: E402
-from mesh.quality import check_quality, corner_jacobians, hex_volumes  # noqa: E402
-from mesh.volume import (  # noqa: E402
+from cad.errors import GeometryError, MeshQualityError, ParameterError
+from cad.model import EVERYWHERE
+from cad.surfaces import Cylinder, Plane, Sphere, Torus
+from mesh.facets import HEX_FACES, boundary_facets, select_facets
+from mesh.gmsh_session import gmsh_session
+from mesh.quality import check_quality, corner_jacobians, hex_volumes
+from mesh.volume import (
     GMSH_HEX8_TO_VTK,
     HEX8,
     _box_expr,

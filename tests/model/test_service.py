@@ -16,8 +16,6 @@ from model.service import ModelService
 from model.spec import DesignPoint, ModelSpec, point_label, result_key
 from model.store import ResultStore
 
-pytest.importorskip("gmsh")
-
 
 def _spec(**cycle):
     return ModelSpec(

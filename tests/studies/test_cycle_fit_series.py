@@ -17,7 +17,6 @@ from model.file import write_model
 from model.spec import ModelSpec
 from studies.cli.main import main
 
-pytest.importorskip("gmsh")
 COARSE = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2),)}
 
 

@@ -14,9 +14,6 @@ import pytest
 
 from studies.cli.main import main
 
-pytest.importorskip("gmsh")
-pytest.importorskip("distributed")
-
 STUDY = """
 [study]
 name = "dask_2x2"

@@ -146,7 +146,6 @@ def test_bad_study_is_one_line_and_exit_1(tmp_path, capsys):
 
 
 def test_study_runs_fits_retries_failed(tmp_path, capsys, monkeypatch):
-    pytest.importorskip("gmsh")
     from cad.errors import ConvergenceError
     from model.service import ModelService
 

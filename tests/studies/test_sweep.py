@@ -13,7 +13,6 @@ from mesh.settings import MeshSettings
 from rsm import trace
 from studies.sweep import SweepSettings, run_sweep
 
-pytest.importorskip("gmsh")
 COARSE = MeshSettings.coarse()
 
 

@@ -168,7 +168,6 @@ FAST = DiagnoseSettings(
 
 @pytest.fixture(scope="module")
 def spec():
-    pytest.importorskip("gmsh")
     from cad.general import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings

@@ -153,7 +153,6 @@ def test_settings_refuse_bad_values(field, value, match):
 def test_true_model_passes_compare_on_synthetic_data_with_clearance(tmp_path):
     """No hidden effect, Δr = 0.1 mm: the record and the model start from the same centred
     pin, so δ(+Fg) agrees (it was −95 % off when the record jumped 2Δr at its start)."""
-    pytest.importorskip("gmsh")
     from cad.general import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
@@ -193,7 +192,6 @@ def _coarse_spec():
 def test_synth_adapts_a_data_mesh_that_distorts_and_says_so(tmp_path):
     """On the coarse mesh at Δr = 0.3 mm the ×1.5 arc grading gives a scaled Jacobian of
     0.049: the data mesh is graded less there, the manifest says why, the set is complete."""
-    pytest.importorskip("gmsh")
     from validation.synth import design_cases, synthesize
 
     out = tmp_path / "set"

@@ -21,7 +21,6 @@ from fe.cycle.result import CycleResult
 from fe.kinds import hinge_kind
 from mesh.build import mesh_hinge
 
-pytest.importorskip("gmsh")
 COARSE = {"size_mm": 4.0, "contact_size_mm": 0.8, "part_sizes_mm": (("ring", 1.2),)}
 
 pytestmark = pytest.mark.slow  # a coarse build (~35 s) and a short cycle

@@ -27,10 +27,8 @@ from fe.effects.registry import (
 )
 from fe.general.cycle import configurations, run_cycle
 from fe.general.system import build_system
-from mesh.settings import MeshSettings
-
-pytest.importorskip("gmsh")
 from mesh.build import mesh_hinge
+from mesh.settings import MeshSettings
 
 COARSE = MeshSettings.coarse()
 FG = 400.0

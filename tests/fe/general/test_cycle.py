@@ -16,10 +16,8 @@ from fe.cycle.protocol import CycleSettings
 from fe.cycle.result import CycleResult
 from fe.general.cycle import grip_force, run_cycle
 from fe.general.system import build_system, displacement, support_reaction
-from mesh.settings import MeshSettings
-
-pytest.importorskip("gmsh")
 from mesh.build import mesh_hinge
+from mesh.settings import MeshSettings
 
 COARSE = MeshSettings.coarse()
 
@@ -59,7 +57,8 @@ def loose_400(loose):
 def test_energy_balance_friction_work_equals_loop_area(which, request):
     m = request.getfixturevalue(which).metrics()
     assert m["W_cycle_Nmm"] > 0
-    assert m["energy_balance_rel_err"] < 0.02
+    # the trapezoidal identity is exact step by step: 2.7e-15 / 1.0e-14 reached (Δr 0 / 0.1)
+    assert m["energy_balance_rel_err"] < 1e-12
 
 
 def test_loop_closes_and_eta_is_the_papers_definition(tight_400):

@@ -18,10 +18,8 @@ from fe.general.crossing import face_mask
 from fe.general.cycle import configurations, run_cycle
 from fe.general.faces import face_normal_forces
 from fe.general.system import build_system
-from mesh.settings import MeshSettings
-
-pytest.importorskip("gmsh")
 from mesh.build import mesh_hinge
+from mesh.settings import MeshSettings
 
 CLEARANCE = 0.1
 MU = 0.2
@@ -191,7 +189,6 @@ def test_held_clevis_keeps_the_pin_centred_inside_a_contact_window(loose):
 
 def test_loop_files_of_a_sliding_cycle(slid, tmp_path):
     """The loop CSV with the free play is the grips' path; the figure is drawn on it."""
-    pytest.importorskip("matplotlib")
     from fe.general.report import write_loop_csv, write_loop_png
 
     csv_path = write_loop_csv(slid.result, tmp_path / "loop.csv", with_free_play=True)

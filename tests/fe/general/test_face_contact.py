@@ -26,10 +26,8 @@ from fe.general.faces import (
     unloaded_state,
 )
 from fe.general.system import build_system
-from mesh.settings import MeshSettings
-
-pytest.importorskip("gmsh")
 from mesh.build import mesh_hinge
+from mesh.settings import MeshSettings
 
 COARSE = MeshSettings.coarse()
 P = GeneralHingeParams()

@@ -9,8 +9,6 @@ from cad.errors import ParameterError
 from cad.general import GeneralHingeParams, make_general_hinge
 from cad.surfaces import Cylinder
 from fe.general.geometry import closest_point, contact_geometry
-
-pytest.importorskip("gmsh")
 from mesh.build import mesh_hinge
 from mesh.settings import MeshSettings
 

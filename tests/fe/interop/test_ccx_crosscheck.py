@@ -32,7 +32,6 @@ from fe.interop.inp import GRIP_REF_SET, write_deck
 from studies.cli.main import main
 
 pytestmark = pytest.mark.slow
-pytest.importorskip("gmsh")
 
 AMPLITUDE_N = 400.0
 MU = 0.2

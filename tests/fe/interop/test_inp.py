@@ -91,7 +91,6 @@ def grip_faces(length):
 
 @pytest.fixture(scope="module")
 def hinge():
-    pytest.importorskip("gmsh")
     from cad.general import GeneralHingeParams, make_general_hinge
     from mesh.build import mesh_hinge
     from mesh.settings import MeshSettings
@@ -577,7 +576,6 @@ def test_conforming_mesh_starts_without_overclosure():
     facets are the same chords, so ccx's faceted surfaces touch without overclosure and
     the deck needs no ADJUST (tests/fe/interop/test_ccx_crosscheck.py).
     """
-    pytest.importorskip("gmsh")
     from cad.general import GeneralHingeParams, make_general_hinge
     from mesh.build import mesh_hinge
     from mesh.settings import MeshSettings

@@ -11,8 +11,6 @@ import pytest
 
 from studies.cli.main import main
 
-pytest.importorskip("gmsh")
-
 AMPLITUDES = {"c200": (200.0, 1.0), "c400": (400.0, 1.0), "c300_bad": (300.0, 1.3)}
 """case → (amplitude [N], displacement scale applied to the measurement)."""
 
@@ -133,17 +131,23 @@ def test_compare_cli_json_passes_true_cases_and_fails_the_wrong_scale(dataset, c
     assert len(list((out / "model_loops").glob("*.csv"))) == 3
 
 
-def test_table_printed_from_the_written_files(dataset, capsys):
+@pytest.fixture(scope="module")
+def compared(dataset):
+    """The CLI run whose files the table test reads (its own, so it runs alone too)."""
+    root, model_path, data = dataset
+    out = root / "out_table"
+    assert main(["compare", str(model_path), str(data), "--out", str(out)]) == 0
+    return out / "model_loops", data
+
+
+def test_table_printed_from_the_written_files(compared):
     """The text table, formed from the model loops the CLI run wrote (no second FE run)."""
     from studies.cli.compare import format_table
     from validation.compare import ModelResult, compare
     from validation.loop_files import read_loop_csv
     from validation.measurements import read_measurement_set
 
-    root, _, data = dataset
-    loops = root / "out" / "model_loops"
-    if not loops.is_dir():
-        pytest.skip("needs the CLI run of the previous test")
+    loops, data = compared
     ms = read_measurement_set(data)
     models = {
         c.case_id: ModelResult(read_loop_csv(loops / f"c0.000_F{c.amplitude_n:g}.csv"))

@@ -10,7 +10,6 @@ import pytest
 
 from studies.cli.main import main
 
-pytest.importorskip("gmsh")
 COARSE = ["--size", "4", "--contact-size", "2", "--increments", "6"]
 
 

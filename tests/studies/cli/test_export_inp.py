@@ -13,8 +13,6 @@ from model.file import write_model
 from model.spec import ModelSpec
 from studies.cli.main import main
 
-pytest.importorskip("gmsh")
-
 
 @pytest.fixture
 def model_file(tmp_path):

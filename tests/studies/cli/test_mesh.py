@@ -8,8 +8,6 @@ import pytest
 
 from studies.cli.main import main
 
-pytest.importorskip("gmsh")
-
 
 def test_mesh_json_and_files(tmp_path, capsys):
     assert (

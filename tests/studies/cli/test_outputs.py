@@ -209,7 +209,6 @@ def test_compare_checks_out_before_running_the_model(tmp_path, capsys, monkeypat
 
 @pytest.mark.slow  # one coarse cycle: ~10 s alone, over 30 s on the shared machine
 def test_compare_fails_on_mismatch(tmp_path, capsys):
-    pytest.importorskip("gmsh")
     model, data = _model_and_data(tmp_path)
     out = tmp_path / "cmp"
     assert (

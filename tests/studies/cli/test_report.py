@@ -474,7 +474,6 @@ def test_cycle_report_renders_in_chromium(chromium, tmp_path):
 
 def test_report_of_a_real_coarse_cycle(chromium, tmp_path):
     """``hingelab cycle`` on the coarse mesh, then its report, checked and rendered."""
-    pytest.importorskip("gmsh")
     folder = tmp_path / "cycle"
     args = ["cycle", "--size", "4", "--contact-size", "2", "--increments", "6"]
     assert main([*args, "--no-progress", "--out", str(folder)]) == 0

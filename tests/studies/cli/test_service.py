@@ -6,11 +6,8 @@ import csv
 import json
 
 import numpy as np
-import pytest
 
 from studies.cli.main import main
-
-pytest.importorskip("gmsh")
 
 FAST = ["--size", "4", "--contact-size", "2", "--increments", "6"]
 

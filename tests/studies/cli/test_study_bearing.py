@@ -19,7 +19,6 @@ def test_bearing_study_runs_traces_fits_and_reads_every_point_back(tmp_path, cap
     """One setup of the tied coarse bearing model shared by both preloads (~10-14 s on two
     loaded cores), four cycles of hundredths of a second; the reruns compute nothing.
     21 s in all on the first run: slow."""
-    pytest.importorskip("gmsh")
     out = tmp_path / "out"
     argv = ["study", str(EXAMPLE), "--out", str(out)]
     assert main([*argv, "--json", "--no-plots"]) == 0

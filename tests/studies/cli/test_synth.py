@@ -8,8 +8,6 @@ import pytest
 
 from studies.cli.main import main
 
-pytest.importorskip("gmsh")
-
 CASES = "0:300;0.1:300"
 
 
