@@ -43,7 +43,8 @@ def test_shipped_examples_load():
     coarse = read_study(EXAMPLES / "coarse_2x2.toml")
     assert len(coarse.points) == 4
     assert coarse.spec.mesh.size_mm == 4.0  # the coarse preset
-    assert coarse.spec.cycle.increments_per_stage == coarse.spec.cycle.clearance_increments == 6
+    assert coarse.spec.cycle.increments_per_stage == 6
+    assert coarse.spec.cycle.clearance_increments == 60  # converged with clearance (issue 33)
     paper = read_study(EXAMPLES / "paper_general_5x5.toml")
     assert len(paper.points) == 25
     assert paper.points[:2] == ((0.0, 100.0), (0.0, 200.0))  # the paper's row order
