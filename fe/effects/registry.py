@@ -57,10 +57,10 @@ from fe.effects.models import (
     RoughnessSoftening,
     TangentialCompliance,
 )
-from fe.general.condensed import Condensed
 from fe.general.cycle import configurations, run_cycle
 from fe.general.faces import faces_only, unloaded_state
 from fe.general.system import GRIP, HingeSystem
+from fe.structure.condensed import Condensed
 
 __all__ = [
     "REGISTRY",

@@ -1,9 +1,10 @@
-"""The hinge as a mechanical system: geometry of its contacts, condensation, the load cycle.
+"""The general hinge as a mechanical system: its condensation and its load cycle.
 
-* :mod:`fe.general.geometry` — contact points and gaps on the exact surfaces of a mesh;
+Its contact points come from :mod:`fe.surfaces.geometry`, and the shared structure
+(rigid modes, the 3-2-1 support, ``Condensed``) from :mod:`fe.structure`.
+
 * :mod:`fe.general.system` — the general hinge factorised once and condensed onto its
   contact points (the Delassus operator of :mod:`fe.contact`), displacement recovery;
-* :mod:`fe.general.twobody` — the same for any two elastic bodies (verification rigs);
 * :mod:`fe.general.faces` — friction between the tang and clevis faces under an axial clamp;
 * :mod:`fe.cycle.protocol` — the load history as data (``CycleSettings``);
 * :mod:`fe.general.cycle` — the force-controlled cycle (``run_cycle``, its step ``HingeStep``

@@ -52,9 +52,10 @@ from cad.model import PairKind, SurfacePair
 from cad.surfaces import Cylinder
 from fe.assembly import assemble_stiffness, dofs_of
 from fe.element import ElementType
-from fe.general.condensed import Condensed
-from fe.general.geometry import ContactGeometry, contact_operator
 from fe.linalg.sparse import Factorization, inverse_block
+from fe.structure.condensed import BLOCK_RHS, Condensed
+from fe.structure.supports import rigid_modes, three_two_one
+from fe.surfaces.geometry import ContactGeometry, contact_operator
 from mesh.hexmesh import HexMesh
 
 logger = logging.getLogger(__name__)
@@ -70,13 +71,6 @@ GRIP = 6
 
 N_RIGID = N_PIN_MODES + 1
 """Rigid amplitudes of the hinge's condensed problem: the pin's six modes and the grip."""
-
-BLOCK_RHS = 128
-"""Right-hand sides per block solve when condensing (see benchmarks/bench_assembly.py).
-
-Also the best for the pin solves of :func:`pin_delassus`: level 1 at zero clearance
-(9 408 rows, one thread, a busy day), 32 / 64 / 128 / 256 / 512 right-hand sides took
-78 / 72–73 / 68–70 / 73 / 84–87 s, the same W to the bit."""
 
 RECOVER_BLOCK = 32
 """Right-hand sides per block solve when recovering displacements (bounds the work memory)."""
@@ -107,17 +101,6 @@ TANG = "tang"
 def is_tang_side(pair: SurfacePair) -> bool:
     """True for the pin–tang contact pair (its master face belongs to the tang)."""
     return pair.master.startswith(TANG)
-
-
-def rigid_modes(nodes: FloatArray, centre: FloatArray) -> FloatArray:
-    """Six rigid-body modes of a node set, shape (3 n, 6): translations x, y, z [mm/mm], rotations [mm/rad]."""
-    d = nodes - centre
-    R = np.zeros((len(nodes), 3, 6))
-    R[:, 0, 0] = R[:, 1, 1] = R[:, 2, 2] = 1.0
-    R[:, :, 3] = np.cross([1.0, 0, 0], d)
-    R[:, :, 4] = np.cross([0, 1.0, 0], d)
-    R[:, :, 5] = np.cross([0, 0, 1.0], d)
-    return R.reshape(-1, 6)
 
 
 @dataclass
@@ -298,28 +281,6 @@ class HingeSystem:
     def n_dof(self) -> int:
         """Number of DOFs of the whole mesh."""
         return 3 * self.mesh.n_nodes
-
-
-def nearest_node(mesh: HexMesh, nodes: IntArray, point: tuple[float, float, float]) -> int:
-    """The node of ``nodes`` closest to ``point`` [mm]."""
-    x = np.asarray(mesh.nodes)[nodes]
-    return int(nodes[np.argmin(np.linalg.norm(x - np.asarray(point), axis=1))])
-
-
-def three_two_one(mesh: HexMesh, nodes: IntArray) -> IntArray:
-    """Six DOFs that hold a floating body along the z axis rigidly and no more (3-2-1).
-
-    The node nearest the axis at each end (x, y, z and x, y) and one on the rim at the
-    low end (y), shape (6,). Only to factorise the body: its rigid modes are carried as
-    amplitudes, and the reactions at these DOFs vanish for a self-equilibrated load.
-    """
-    x = np.asarray(mesh.nodes)[nodes]
-    lo, hi = x[:, 2].min(), x[:, 2].max()
-    r = float(np.hypot(x[:, 0], x[:, 1]).max())
-    a = nearest_node(mesh, nodes, (0, 0, lo))
-    b = nearest_node(mesh, nodes, (0, 0, hi))
-    c = nearest_node(mesh, nodes, (r, 0, lo))
-    return np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * c + 1], dtype=np.int64)
 
 
 def build_system(
