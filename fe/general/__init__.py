@@ -11,5 +11,6 @@ Its contact points come from :mod:`fe.surfaces.geometry`, and the shared structu
   for :mod:`fe.cycle.driver`); :mod:`fe.general.freeplay` — the step of clamped faces with
   clearance; :mod:`fe.general.increments` — the increments both solve and record;
 * :mod:`fe.cycle.result` — its result (loop, η, energy balance);
-* :mod:`fe.general.report` — loop CSV/PNG and the ParaView series.
+* :mod:`fe.general.report` — its ParaView series (contact pressure and slip on the pin),
+  written by :mod:`fe.cycle.fields`; the loop files are :mod:`fe.cycle.loop_files`.
 """
