@@ -3,8 +3,12 @@
 Its contact points come from :mod:`fe.surfaces.geometry`, and the shared structure
 (rigid modes, the 3-2-1 support, ``Condensed``) from :mod:`fe.structure`.
 
-* :mod:`fe.general.system` — the general hinge factorised once and condensed onto its
-  contact points (the Delassus operator of :mod:`fe.contact`), displacement recovery;
+* :mod:`fe.general.system` — the general hinge assembled and factorised once (supports,
+  grips, nodal compliances, low-memory mode), displacement recovery;
+* :mod:`fe.general.condensation` — the hinge condensed onto the contact points of a
+  configuration (the Delassus operator of :mod:`fe.contact`);
+* :mod:`fe.general.memory` — whether that fits in memory, and which way to form it
+  (``HINGELAB_CONDENSE``, ``HINGELAB_MEMORY_CHECK``);
 * :mod:`fe.general.faces` — friction between the tang and clevis faces under an axial clamp;
 * :mod:`fe.cycle.protocol` — the load history as data (``CycleSettings``);
 * :mod:`fe.general.cycle` — the force-controlled cycle (``run_cycle``, its step ``HingeStep``

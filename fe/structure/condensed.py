@@ -1,6 +1,6 @@
 """The one condensed system every builder returns: contact operators of one configuration.
 
-``fe.general.system.condense`` (the hinge, from nodal compliances, with rigid
+``fe.general.condensation.condense`` (the hinge, from nodal compliances, with rigid
 amplitudes), ``fe.structure.twobody.condense`` (two elastic bodies, by block solves) and the
 bearing hinge's builders produce a ``Condensed``; :mod:`fe.contact` solves on its ``W``,
 ``w0`` and ``G``. ``BLOCK_RHS`` is the block size of the solves that form them.
@@ -21,7 +21,7 @@ FloatArray = npt.NDArray[np.float64]
 BLOCK_RHS = 128
 """Right-hand sides per block solve when condensing (see benchmarks/bench_assembly.py).
 
-Also the best for the general hinge's pin solves (``fe.general.system.pin_delassus``):
+Also the best for the general hinge's pin solves (``fe.general.condensation.pin_delassus``):
 level 1 at zero clearance (9 408 rows, one thread, a busy day), 32 / 64 / 128 / 256 / 512
 right-hand sides took 78 / 72–73 / 68–70 / 73 / 84–87 s, the same W to the bit."""
 
