@@ -429,7 +429,8 @@ def oracle(level: int) -> list[dict[str, Any]]:
     import fe.contact.solve as solve
     import fe.general.cycle as cycle
     from fe.contact.dense import factor_jacobian, gather_block, lu_solve
-    from fe.contact.newton import form_jacobian, linearise, sparse_product
+    from fe.contact.newton import form_jacobian, linearise
+    from fe.contact.residual import sparse_product
 
     t0 = time.perf_counter()
     spec, system, _ = _prepare(level, condense=False)

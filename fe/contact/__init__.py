@@ -4,7 +4,8 @@ This sub-package is the contact algebra only: it imports nothing else from ``fe`
 
 * :mod:`fe.contact.law` — the Alart–Curnier/Coulomb law at one point;
 * :mod:`fe.contact.state` — settings, the converged state, the increment result, checks;
-* :mod:`fe.contact.newton` — residual and the reduced active-set Newton step;
+* :mod:`fe.contact.residual` — the increment (``Problem``), an iterate and its residual;
+* :mod:`fe.contact.newton` — the reduced active-set Newton step;
 * :mod:`fe.contact.dense` — its dense LU (and the LU thread rule), bordered solves;
 * :mod:`fe.contact.krylov` — the same step by GMRES (:mod:`fe.contact.gmres`) with a
   kept, updated LU;

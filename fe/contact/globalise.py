@@ -16,7 +16,8 @@ import numpy.typing as npt
 from fe.contact.dense import Factor
 from fe.contact.krylov import Workspace, krylov_step
 from fe.contact.law import ContactStatus
-from fe.contact.newton import Iterate, Problem, Step, evaluate, newton_step, sparse_product
+from fe.contact.newton import Step, newton_step
+from fe.contact.residual import Iterate, Problem, evaluate, sparse_product
 from fe.contact.state import ContactSettings
 
 FloatArray = npt.NDArray[np.float64]

@@ -47,15 +47,8 @@ from fe.contact.dense import (
 from fe.contact.gmres import gmres
 from fe.contact.law import ContactStatus
 from fe.contact.memo import ArrayMemo
-from fe.contact.newton import (
-    Iterate,
-    Linear,
-    Problem,
-    Step,
-    form_jacobian,
-    linearise,
-    sparse_product,
-)
+from fe.contact.newton import Linear, Step, form_jacobian, linearise
+from fe.contact.residual import Iterate, Problem, sparse_product
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]

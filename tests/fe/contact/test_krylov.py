@@ -9,6 +9,7 @@ import pytest
 
 from fe.contact import krylov as contact_krylov
 from fe.contact import newton as contact_newton
+from fe.contact import residual as contact_residual
 from fe.contact.krylov import KrylovOptions
 from fe.contact.solve import solve_increment
 from fe.contact.state import ContactSettings, ContactState, LinearSolver
@@ -29,10 +30,10 @@ def iterate(W, seed, mu=0.3, k=0):
     w_free = rng.normal(scale=0.5, size=(m, 3)) + np.array([-0.3, 0.0, 0.0])
     prev_w = rng.normal(scale=0.2, size=(m, 3))
     G = rng.normal(size=(3 * m, k))
-    prob = contact_newton.Problem(W, w_free, G, rng.normal(size=k), prev_w[:, 1:], mu)
+    prob = contact_residual.Problem(W, w_free, G, rng.normal(size=k), prev_w[:, 1:], mu)
     r = 1.0 / np.diagonal(W).reshape(m, 3).mean(axis=1)
     p = rng.normal(size=(m, 3)) + np.array([0.5, 0.0, 0.0])
-    it = contact_newton.evaluate(prob, p, rng.normal(size=k), r)
+    it = contact_residual.evaluate(prob, p, rng.normal(size=k), r)
     return prob, it, r
 
 
@@ -247,12 +248,12 @@ def test_form_jacobian_equals_r_w_t(path, block_kind, symmetric, monkeypatch):
 @pytest.mark.parametrize("n_nonzero", [0, 1, 4, 20])
 def test_sparse_product_equals_the_full_product(n_nonzero, plain_max, monkeypatch):
     """W x from the rows of x's support (or the full product when x is dense) is W x."""
-    monkeypatch.setattr(contact_newton, "PLAIN_PRODUCT_MAX", plain_max)
+    monkeypatch.setattr(contact_residual, "PLAIN_PRODUCT_MAX", plain_max)
     W = random_W(30, 7)
     rng = np.random.default_rng(8)
     x = np.zeros((30, 3))
     x[rng.choice(30, n_nonzero, replace=False)] = rng.normal(size=(n_nonzero, 3))
-    np.testing.assert_allclose(contact_newton.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
+    np.testing.assert_allclose(contact_residual.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
 
 
 @pytest.mark.parametrize("max_runs", [200, 3])  # as rectangles of runs; by chunks of rows
@@ -285,11 +286,11 @@ def test_is_subset_agrees_with_isin():
 
 def test_sparse_product_reads_runs_of_rows(monkeypatch):
     """Support in runs of consecutive points, at both ends and alone: still W x."""
-    monkeypatch.setattr(contact_newton, "PLAIN_PRODUCT_MAX", 0)  # 90 rows: by runs
+    monkeypatch.setattr(contact_residual, "PLAIN_PRODUCT_MAX", 0)  # 90 rows: by runs
     W = random_W(30, 7)
     x = np.zeros((30, 3))
     x[[0, 1, 2, 7, 12, 13, 14, 15, 29]] = np.random.default_rng(9).normal(size=(9, 3))
-    np.testing.assert_allclose(contact_newton.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
+    np.testing.assert_allclose(contact_residual.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
 
 
 def test_state_w_is_the_exact_product_after_line_searches():

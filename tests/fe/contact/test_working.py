@@ -9,6 +9,7 @@ import pytest
 
 from fe.contact import krylov as contact_krylov
 from fe.contact import newton as contact_newton
+from fe.contact import residual as contact_residual
 from fe.contact import solve as contact_solve
 from fe.contact import working as contact_working
 from fe.contact.krylov import KrylovOptions
@@ -145,7 +146,7 @@ def test_a_grown_working_set_keeps_the_base_lu_on_the_same_slots():
 
     W_old, s_old = sub(old)
     sub_prob = contact_working._sub_problem(prob, old, W_old, s_old)
-    sub_it = contact_newton.evaluate(sub_prob, it.p[old], it.alpha, r[old])
+    sub_it = contact_residual.evaluate(sub_prob, it.p[old], it.alpha, r[old])
     ws_old = contact_krylov.workspace_for(W_old, s_old)
     assert contact_krylov.krylov_step(sub_prob, sub_it, r[old], 0.0, ws_old, KrylovOptions())
     base = ws_old.base
