@@ -12,7 +12,7 @@ row and column of a point whose status (or slip direction, beyond ``turn_cos``) 
 * ``J₀,SS⁻¹`` follows from ``J₀⁻¹`` by a Schur complement on ``O``:
   ``J₀,SS⁻¹ y = x_S - Z_S (Z_O)⁻¹ x_O`` with ``x = J₀⁻¹ [y; 0]`` and ``Z = J₀⁻¹ E_O``;
 * ``M = [[J₀,SS, J_SN], [J_NS, J_NN]]`` is inverted by a Schur complement on ``N``;
-* the rigid amplitudes are bordered on as in :func:`fe.contact.newton.solve_bordered`.
+* the rigid amplitudes are bordered on as in :func:`fe.contact.dense.solve_bordered`.
 
 The setup costs ``|N| + |O| + k`` triangular solves; each GMRES iteration one solve with
 the base and one product with ``W`` on the closed points' DOFs. ``M`` differs from the

@@ -16,12 +16,7 @@ import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
-from fe.contact.dense import LU_THREADED_MIN as LU_THREADED_MIN
-from fe.contact.dense import Factor as Factor
-from fe.contact.dense import factor_jacobian as factor_jacobian
-from fe.contact.dense import lu_threads
-from fe.contact.dense import lu_threads_from_env as lu_threads_from_env
-from fe.contact.dense import solve_bordered as solve_bordered
+from fe.contact.dense import Factor, factor_jacobian, lu_threads, solve_bordered
 from fe.contact.law import ContactStatus, per_point, slip_frame
 from fe.contact.residual import Iterate, Problem, sparse_product
 

@@ -8,7 +8,6 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ConvergenceError, ParameterError
-from fe.contact.globalise import RESCUE_FACTORS as RESCUE_FACTORS
 from fe.contact.globalise import newton_loop
 from fe.contact.krylov import workspace_for
 from fe.contact.law import ContactStatus

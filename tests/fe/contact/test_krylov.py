@@ -10,6 +10,7 @@ import pytest
 from fe.contact import krylov as contact_krylov
 from fe.contact import newton as contact_newton
 from fe.contact import residual as contact_residual
+from fe.contact.dense import factor_jacobian
 from fe.contact.krylov import KrylovOptions
 from fe.contact.solve import solve_increment
 from fe.contact.state import ContactSettings, ContactState, LinearSolver
@@ -49,7 +50,7 @@ def test_preconditioner_inverts_the_updated_matrix_exactly():
     lin_a = contact_newton.linearise(prob_a, it_a, r)
     lin_b = contact_newton.linearise(prob_b, it_b, r)
     J_a, J_b = dense_j(prob_a, lin_a), dense_j(prob_b, lin_b)
-    factor = contact_newton.factor_jacobian(J_a.copy(), lin_a.keys)
+    factor = factor_jacobian(J_a.copy(), lin_a.keys)
     base = contact_krylov.Base(factor, lin_a.closed, lin_a.kind, lin_a.u, lin_a.kappa)
     ws = contact_krylov.Workspace()
     ops = contact_krylov._operators(prob_b, lin_b, ws)
@@ -76,7 +77,7 @@ def test_slip_point_whose_kappa_moved_is_made_exact():
     lin = contact_newton.linearise(prob, it, r)
     slipping = np.flatnonzero(lin.kind == 1)
     assert len(slipping) >= 2
-    factor = contact_newton.factor_jacobian(dense_j(prob, lin), lin.keys)
+    factor = factor_jacobian(dense_j(prob, lin), lin.keys)
     kappa = lin.kappa.copy()
     moved, nudged = slipping[0], slipping[1]
     kappa[moved] = 0.5 if kappa[moved] < 0.25 else kappa[moved] - 0.25
