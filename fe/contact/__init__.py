@@ -8,7 +8,9 @@ This sub-package is the contact algebra only: it imports nothing else from ``fe`
 * :mod:`fe.contact.newton` — the reduced active-set Newton step;
 * :mod:`fe.contact.dense` — its dense LU (and the LU thread rule), bordered solves;
 * :mod:`fe.contact.krylov` — the same step by GMRES (:mod:`fe.contact.gmres`) with a
-  kept, updated LU;
+  kept, updated LU: its options and kept state; :mod:`fe.contact.preconditioner` — the
+  operators on a kept ``W`` block and the updated LU; :mod:`fe.contact.krylov_step` —
+  the step;
 * :mod:`fe.contact.globalise` — the Newton loop: line search, rescues;
 * :mod:`fe.contact.proximal` — the fallback where no Newton step exists (singular ``W``);
 * :mod:`fe.contact.working` — open-point elimination: the increment on the points that
