@@ -159,7 +159,8 @@ def mortar_row(
     from fe.effects.registry import REGISTRY
     from fe.interop.ccx import loop_figures, loop_from_dat, parse_dat, parse_sta
     from fe.interop.deck_settings import DeckSettings
-    from fe.interop.inp import GRIP_REF_SET, write_deck
+    from fe.interop.inp import write_deck
+    from fe.interop.inp_names import GRIP_REF_SET
     from mesh.build import mesh_hinge
     from model.file import read_model
 
@@ -220,7 +221,7 @@ def mortar_row(
 def penalty_table(folder: Path) -> list[dict[str, object]]:
     """Frictionless first loading: ccx's δ(+Fg) per penalty slope against ours (μ = 0)."""
     from fe.interop.ccx import loop_from_dat, parse_dat, run_ccx
-    from fe.interop.inp import GRIP_REF_SET
+    from fe.interop.inp_names import GRIP_REF_SET
     from studies.cli.main import main
 
     toml = model_file(folder, "coarse")

@@ -35,7 +35,8 @@ def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict
     """Run the cycle with counting wrappers; return per-increment rows and the totals."""
     import fe.contact.dense as dense
     import fe.contact.globalise as globalise
-    import fe.contact.krylov as krylov
+    import fe.contact.krylov_step as krylov_step
+    import fe.contact.preconditioner as preconditioner
     import fe.contact.working as working
     import fe.general.cycle as cycle
     import fe.general.increments as increments
@@ -50,7 +51,11 @@ def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict
     def count(name: str, value: float = 1.0) -> None:
         now[name] = now.get(name, 0.0) + value
 
-    factor, precondition, gather = krylov.factor_jacobian, krylov._precondition, dense.gather_block
+    factor, precondition, gather = (
+        dense.factor_jacobian,
+        preconditioner.precondition,
+        dense.gather_block,
+    )
 
     def factor_counted(J: Any, keys: Any, threads: Any = None, *, single: bool = False) -> Any:
         t0 = time.perf_counter()
@@ -81,9 +86,10 @@ def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict
         return step, new
 
     globalise._direction = direction_counted
-    krylov.factor_jacobian = factor_counted
-    krylov._precondition = precondition_counted
-    krylov.gather_block = gather_counted
+    krylov_step.factor_jacobian = factor_counted  # the base LUs
+    preconditioner.factor_jacobian = factor_counted  # the updates' small LUs (below BIG_LU)
+    krylov_step.precondition = precondition_counted
+    preconditioner.gather_block = gather_counted
     working.gather_block = gather_counted
     rows: list[dict[str, Any]] = []
     solve = increments.solve_increment

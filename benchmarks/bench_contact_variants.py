@@ -166,12 +166,13 @@ def variants(level: int) -> list[dict[str, Any]]:
     import fe.contact.dense as dense
     import fe.contact.globalise as globalise
     import fe.contact.krylov as krylov
+    import fe.contact.krylov_step as krylov_step
     import fe.general.cycle as cycle
     import fe.general.increments as increments
 
     spec, system, configs = _prepare(level)
     counts = {"lus": 0, "gmres": 0}
-    factor, gmres = dense.sla.lu_factor, krylov.gmres
+    factor, gmres = dense.sla.lu_factor, krylov_step.gmres
 
     def lu_counted(a: Any, *args: Any, **kw: Any) -> Any:
         if a.shape[0] >= BASE_LU and a.dtype == np.float32:
@@ -201,7 +202,7 @@ def variants(level: int) -> list[dict[str, Any]]:
         counts.update(lus=0, gmres=0)
         with (
             _patched(dense.sla, "lu_factor", lu_counted),
-            _patched(krylov, "gmres", gmres_counted),
+            _patched(krylov_step, "gmres", gmres_counted),
             _patched(cycle, "hinge_contact", contact),
             _patched(increments, "solve_increment", solve),
             _patched(globalise, "line_search", search),
@@ -231,14 +232,14 @@ def variants(level: int) -> list[dict[str, Any]]:
 
 def _capture(level: int) -> tuple[Any, Any, Any]:
     """W, the closed points' coordinates and the middle Newton system of ``CAPTURE``."""
-    import fe.contact.krylov as krylov
+    import fe.contact.krylov_step as krylov_step
     import fe.general.cycle as cycle
     import fe.general.increments as increments
 
     spec, system, configs = _prepare(level)
     systems: list[Any] = []
     calls = [0]
-    linearise, solve = krylov.linearise, increments.solve_increment
+    linearise, solve = krylov_step.linearise, increments.solve_increment
 
     class _Stop(Exception):
         pass
@@ -257,7 +258,7 @@ def _capture(level: int) -> tuple[Any, Any, Any]:
         return out
 
     with (
-        _patched(krylov, "linearise", linearise_kept),
+        _patched(krylov_step, "linearise", linearise_kept),
         _patched(increments, "solve_increment", solve_counted),
         suppress(_Stop),
     ):
@@ -429,7 +430,8 @@ def oracle(level: int) -> list[dict[str, Any]]:
     import fe.contact.solve as solve
     import fe.general.cycle as cycle
     from fe.contact.dense import factor_jacobian, gather_block, lu_solve
-    from fe.contact.newton import form_jacobian, linearise, sparse_product
+    from fe.contact.newton import form_jacobian, linearise
+    from fe.contact.residual import sparse_product
 
     t0 = time.perf_counter()
     spec, system, _ = _prepare(level, condense=False)

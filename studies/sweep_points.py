@@ -61,7 +61,7 @@ def point_record(
         mesh_stats: Mesh figures when ``run.prepared`` is None (a point run elsewhere).
         lu_threads: The LU thread count of the process that ran it (default: this one's).
     """
-    from fe.general.report import write_loop_csv, write_loop_png
+    from fe.cycle.loop_files import write_loop_csv, write_loop_png
     from model.jsonio import dumps, strict_json
 
     if lu_threads is None:

@@ -1,7 +1,7 @@
 """Add effects to a model, fit their parameters and keep an error ledger.
 
 ``calibrate`` fits μ if asked (first), then the named effects one after another (each by
-``validation.diagnose.fit_candidate`` on the model that already holds the ones before
+``validation.candidate_fit.fit_candidate`` on the model that already holds the ones before
 it), and returns the extended model and one ledger row per step: baseline → +effect → …
 with the parameters added, the error ``sqrt(χ²/N)`` (RMS feature residual in σ; ≈ 1 at
 the noise level), the held-out error, AIC = χ² + 2k and BIC = χ² + k ln N (k: effect

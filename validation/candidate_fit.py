@@ -39,7 +39,8 @@ class DiagnoseSettings:
         explained_min: Fraction of the excess χ² the best candidate must explain.
         increments_per_stage: Increments per stage of the diagnosis runs (None: model file's).
         clearance_increments: Increments across the free play (None: model file's).
-        power: Detection probability of the sensitivity statement (``diagnose.sensitivity``).
+        power: Detection probability of the sensitivity statement
+            (``validation.sensitivity.sensitivity``).
         tell_rel_error: Without a significant candidate, the verdict is ``cannot_tell``
             unless the data would detect a common relative error of this size in the loop
             area / η (default 0.5: an error of a half moves a design across the paper's

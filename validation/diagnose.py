@@ -32,21 +32,21 @@ Workflow (``diagnose``):
    * AIC = χ² + 2k and BIC = χ² + k ln N are reported.
 
 5. **Verdict**: no significant candidate and data that could not detect a common
-   relative error of ``tell_rel_error`` in the loop area / η (``sensitivity``: power
+   relative error of ``tell_rel_error`` in the loop area / η (``validation.sensitivity``: power
    ``power`` at ``alpha``) → ``cannot_tell``; baseline consistent with noise (χ²₀ ≤ the
    χ²_N quantile ``1 − alpha``) and no significant candidate → ``no_missing_effect``,
    with the smallest errors the data would have detected; the best significant candidate
    explains at least ``explained_min`` of the excess χ²₀ − N → ``effect_missing`` (unless
    another one fits equally well, Δχ² below the 1-dof quantile ``1 − alpha`` scaled as
    above → ``indistinguishable``, with the design point where the two fitted models differ
-   most); otherwise ``unexplained``, with the residual pattern in words.
+   most); otherwise ``unexplained``, with the residual pattern in words
+   (``validation.misfit``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import enum
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -59,106 +59,24 @@ from model.spec import ModelSpec
 from validation.candidate_fit import (
     CandidateFit,
     DiagnoseSettings,
-    FloatArray,
     MeasuredFeatures,
     chi2,
     design_text,
-    eta_without_free_play,
     fit_candidate,
-    holdout_folds,  # noqa: F401 (validation.calibrate imports it from here)
     measured_features,
     residuals,
 )
 from validation.evaluate import ModelEvaluator
-from validation.features import FEATURES, derived
+from validation.features import FEATURES
 from validation.measurements import MeasurementSet
+from validation.misfit import residual_pattern
+from validation.sensitivity import power_words, sensitivity
 
 __all__ = [
     "Diagnosis",
     "Verdict",
     "diagnose",
-    "residual_pattern",
 ]
-
-
-def residual_pattern(model: FloatArray, meas: MeasuredFeatures) -> list[str]:
-    """Describe the baseline's misfit in words (stiffness, η level and trends).
-
-    Rules, per quantity q ∈ {δ_max, η} with relative error e = (model − measured)/measured
-    (for δ_max relative to its elastic part, the free play 2Δr taken off) and its σ from
-    the features: "at all amplitudes" when every design point's error has
-    the same sign beyond 2σ; "grows with amplitude" when, within a clearance, |e| at the
-    largest amplitude exceeds |e| at the smallest by more than 2σ; likewise for clearance.
-    """
-    amps_all = meas.amplitudes
-    clear_all = np.array([p[0] for p in meas.points])
-    dm, em = derived(model, amps_all)
-    dd, ed = derived(meas.values, amps_all)
-    eta_rows = meas.eta_rows
-    ed = np.where(eta_rows, meas.values[:, 1], ed)  # η-only rows state η itself …
-    em = np.where(eta_rows, eta_without_free_play(model, meas), em)  # … without free play
-    elastic = np.maximum(np.abs(dd - 2.0 * clear_all), 1e-12)  # δ_max without the free play 2Δr
-    s_delta_all = meas.sigma[:, 0] / elastic
-    s_eta_all = meas.sigma[:, 1] / np.abs(meas.values[:, 1])
-    words = []
-    with np.errstate(invalid="ignore", divide="ignore"):
-        quantities = (
-            ("δ", (dm - dd) / elastic, s_delta_all, "too soft", "too stiff"),
-            ("η", em / ed - 1.0, s_eta_all, "η too high", "η too low"),
-        )
-    for label, e_all, s_all, hi_word, lo_word in quantities:
-        keep = np.isfinite(e_all) & np.isfinite(s_all)  # δ is not measured in η-only rows
-        if not np.any(keep):
-            continue
-        e, s, amps, clear = e_all[keep], s_all[keep], amps_all[keep], clear_all[keep]
-        if np.all(e > 2 * s):
-            words.append(
-                f"{hi_word} at all amplitudes ({label} error {np.min(e):+.0%} … {np.max(e):+.0%})"
-            )
-        elif np.all(e < -2 * s):
-            words.append(
-                f"{lo_word} at all amplitudes ({label} error {np.max(e):+.0%} … {np.min(e):+.0%})"
-            )
-        for c in sorted(set(clear)):
-            sel = np.flatnonzero(clear == c)
-            if len(sel) < 2:
-                continue
-            i_lo, i_hi = sel[np.argmin(amps[sel])], sel[np.argmax(amps[sel])]
-            grow = abs(e[i_hi]) - abs(e[i_lo])
-            if abs(grow) > 2 * math.hypot(s[i_hi], s[i_lo]):
-                trend = "grows" if grow > 0 else "shrinks"
-                words.append(
-                    f"{label} error {trend} with amplitude at {design_text(meas, c)} "
-                    f"({e[i_lo]:+.0%} at {amps[i_lo]:g} N → {e[i_hi]:+.0%} at {amps[i_hi]:g} N)"
-                )
-        if len(set(clear)) >= 2:
-            by_c = {c: float(np.mean(np.abs(e[clear == c]))) for c in sorted(set(clear))}
-            cs = list(by_c)
-            if abs(by_c[cs[-1]] - by_c[cs[0]]) > 2 * float(np.mean(s)):
-                trend = "grows" if by_c[cs[-1]] > by_c[cs[0]] else "shrinks"
-                words.append(f"{label} error {trend} with {meas.design_variable}")
-    return words + _largest_residuals(model, meas) or ["no residual beyond 2σ"]
-
-
-def _largest_residuals(model: FloatArray, meas: MeasuredFeatures, k: int = 3) -> list[str]:
-    """Describe the largest residuals beyond 2σ (feature, σ, sign, design point); [] if none."""
-    r = residuals(model, meas)
-    big = [
-        (abs(float(r[i, j])), i, j)
-        for i in range(r.shape[0])
-        for j in range(r.shape[1])
-        if abs(r[i, j]) > 2.0 and abs(r[i, j]) < 1e3
-    ]
-    if not big:
-        return []
-    out = []
-    for _, i, j in sorted(big, reverse=True)[:k]:
-        c, a = meas.points[i]
-        name = "η" if meas.eta_rows[i] else FEATURES[j]
-        sign = "model above data" if r[i, j] > 0 else "model below data"
-        out.append(f"{name} {r[i, j]:+.1f}σ at {design_text(meas, c)}, Fg = {a:g} N ({sign})")
-    out.append(f"{len(big)} of {meas.n_obs} features beyond 2σ")
-    return out
 
 
 class Verdict(enum.StrEnum):
@@ -171,51 +89,6 @@ class Verdict(enum.StrEnum):
     matters (``DiagnoseSettings.tell_rel_error`` in the loop area / η)."""
     INDISTINGUISHABLE = "indistinguishable"
     UNEXPLAINED = "unexplained"
-
-
-SENSITIVITY_NAMES = ("delta_max", "loop_area_or_eta", "opening")
-"""Names of the three feature columns in a sensitivity statement (column 1 is W for a loop
-and η for an η-only row: at a given δ_max a relative error of one is one of the other)."""
-
-
-def sensitivity(meas: MeasuredFeatures, alpha: float, power: float) -> dict[str, float | None]:
-    """Smallest common relative error of each feature the χ² test would detect.
-
-    A model error that scales one feature by (1 + e) at every design point gives residuals
-    ``e·v_i/σ_i`` and makes χ² noncentral with ``λ = e² Σ (v_i/σ_i)²`` over the
-    informative features. The test (χ² above its (1 − α) quantile on N degrees of freedom)
-    detects it with probability ``power`` when λ reaches λ* with
-    ``P(χ²_N(λ*) > limit) = power``; so ``e_min = √(λ* / Σ (v_i/σ_i)²)``.
-
-    Returns:
-        Column name (``SENSITIVITY_NAMES``) → e_min (relative, e.g. 0.3 = 30 %), or None
-        where that feature carries no information at all.
-    """
-    from scipy import optimize
-
-    n = meas.n_obs
-    out: dict[str, float | None] = dict.fromkeys(SENSITIVITY_NAMES)
-    if n == 0:
-        return out
-    limit = float(stats.chi2.ppf(1.0 - alpha, n))
-    lam = optimize.brentq(lambda x: stats.ncx2.sf(limit, n, x) - power, 1e-9, 1e6 + 100 * n)
-    info = meas.informative
-    with np.errstate(invalid="ignore", divide="ignore"):
-        snr2 = np.where(info, (meas.values / meas.sigma) ** 2, 0.0)
-    for j, name in enumerate(SENSITIVITY_NAMES):
-        total = float(np.sum(snr2[:, j]))
-        out[name] = math.sqrt(lam / total) if total > 0 else None
-    return out
-
-
-def _power_words(sens: Mapping[str, float | None], alpha: float, power: float) -> str:
-    parts = [
-        f"{name.replace('_', ' ')} {'—' if e is None else f'{e:.0%}'}" for name, e in sens.items()
-    ]
-    return (
-        f"smallest relative error these data detect with {power:.0%} power at α = {alpha:g}: "
-        + ", ".join(parts)
-    )
 
 
 class _Decision(NamedTuple):
@@ -365,7 +238,7 @@ def _verdict(
     good = [f for f in fits if f.counts]
     if not good:
         sens = sensitivity(meas, s.alpha, s.power)
-        power = _power_words(sens, s.alpha, s.power)
+        power = power_words(sens, s.alpha, s.power)
         area = sens["loop_area_or_eta"]
         low_power = n == 0 or area is None or area > s.tell_rel_error
         if low_power and not c0 > limit:  # a real misfit is reported whatever the power

@@ -47,9 +47,9 @@ from cad.bearing_geometry import BearingHingeParams
 from cad.errors import ParameterError
 from fe.assembly import dofs_of
 from fe.bearing.one_ball import MESH_LEVELS, contact_points_of, model_bodies
-from fe.general.condensed import Condensed
-from fe.general.geometry import contact_operator
-from fe.general.twobody import build_two_body, zero_energy_map
+from fe.structure.condensed import Condensed
+from fe.structure.twobody import build_two_body, zero_energy_map
+from fe.surfaces.geometry import contact_operator
 from mesh.ball_block import BallBlockGrid, ball_block_mesh
 from mesh.hexmesh import HexMesh
 
@@ -169,7 +169,7 @@ def condense_full(
     Locked directions (the rolling direction t2 = ±y of the points on the symmetry plane,
     where both bodies are held in y, and any other row of ``C_f`` that vanishes) get the
     mean diagonal
-    compliance, as in :func:`fe.general.twobody.condense`: nothing drives them (their
+    compliance, as in :func:`fe.structure.twobody.condense`: nothing drives them (their
     ``w_free`` and ``G`` rows are zero), so their force stays zero, and ``W`` stays
     nonsingular for sticking points.
 

@@ -41,9 +41,10 @@ from fe.bearing.balls import ball_law, block_diag
 from fe.bearing.system import BallCounts, BallLines, ball_lines, patch_rows
 from fe.bearing.ties import Ties, assemble_tied, unit_field
 from fe.element import ElementType
-from fe.general.geometry import ContactGeometry, contact_geometry, contact_operator
-from fe.general.system import BLOCK_RHS, nearest_node, rigid_modes, three_two_one
 from fe.linalg.sparse import Factorization
+from fe.structure.condensed import BLOCK_RHS
+from fe.structure.supports import nearest_node, rigid_modes, three_two_one
+from fe.surfaces.geometry import ContactGeometry, contact_geometry, contact_operator
 from mesh.hexmesh import HexMesh
 
 logger = logging.getLogger(__name__)

@@ -6,7 +6,7 @@ the two groove tori and the contact line; :mod:`mesh.ball_block` meshes a column
 ball through both contacts and one block of each ring (half model, y ≥ 0), every contact
 node on the exact sphere or torus. The ball nodes near each contact are the slaves,
 measured against the exact tori (node-to-surface, as
-:func:`fe.general.twobody.two_body_geometry`); the system is condensed on their normal
+:func:`fe.structure.twobody.two_body_geometry`); the system is condensed on their normal
 directions only (:func:`condense_normal`, exact for μ = 0).
 
 Loading (frictionless): the inner block's far face is clamped; the outer block's far
@@ -62,14 +62,14 @@ from fe.bearing.hertz import (
 from fe.bearing.one_ball_post import footprint_semi_axes, halfspace_axis_displacement
 from fe.contact.solve import solve_increment
 from fe.contact.state import ContactSettings, ContactState
-from fe.general.condensed import Condensed
-from fe.general.geometry import (
+from fe.structure.condensed import Condensed
+from fe.structure.twobody import TwoBodySystem, build_two_body, zero_energy_map
+from fe.surfaces.geometry import (
     ContactGeometry,
     bilinear_weights,
     contact_operator,
     project_on_facets,
 )
-from fe.general.twobody import TwoBodySystem, build_two_body, zero_energy_map
 from mesh.ball_block import BallBlockBodies, BallBlockGrid, ball_block_mesh
 from mesh.hexmesh import HexMesh
 

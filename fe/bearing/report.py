@@ -13,8 +13,8 @@ from cad.errors import ParameterError
 from fe.bearing.balls import ball_law, ball_state_of, contact_angles
 from fe.bearing.fits import FitSystem
 from fe.bearing.system import BearingSystem
+from fe.cycle.fields import frames_of, write_series
 from fe.cycle.result import CycleResult
-from fe.general.report import frames_of, write_series
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]

@@ -22,7 +22,7 @@ import scipy.sparse as sp
 
 from cad.errors import MeshQualityError
 from cad.model import PairKind
-from fe.general.geometry import bilinear_weights, project_on_facets
+from fe.surfaces.geometry import bilinear_weights, project_on_facets
 from mesh.hexmesh import HexMesh
 
 FloatArray = npt.NDArray[np.float64]

@@ -4,10 +4,13 @@ This sub-package is the contact algebra only: it imports nothing else from ``fe`
 
 * :mod:`fe.contact.law` — the Alart–Curnier/Coulomb law at one point;
 * :mod:`fe.contact.state` — settings, the converged state, the increment result, checks;
-* :mod:`fe.contact.newton` — residual and the reduced active-set Newton step;
+* :mod:`fe.contact.residual` — the increment (``Problem``), an iterate and its residual;
+* :mod:`fe.contact.newton` — the reduced active-set Newton step;
 * :mod:`fe.contact.dense` — its dense LU (and the LU thread rule), bordered solves;
 * :mod:`fe.contact.krylov` — the same step by GMRES (:mod:`fe.contact.gmres`) with a
-  kept, updated LU;
+  kept, updated LU: its options and kept state; :mod:`fe.contact.preconditioner` — the
+  operators on a kept ``W`` block and the updated LU; :mod:`fe.contact.krylov_step` —
+  the step;
 * :mod:`fe.contact.globalise` — the Newton loop: line search, rescues;
 * :mod:`fe.contact.proximal` — the fallback where no Newton step exists (singular ``W``);
 * :mod:`fe.contact.working` — open-point elimination: the increment on the points that

@@ -14,9 +14,11 @@ import numpy as np
 import numpy.typing as npt
 
 from fe.contact.dense import Factor
-from fe.contact.krylov import Workspace, krylov_step
+from fe.contact.krylov import Workspace
+from fe.contact.krylov_step import krylov_step
 from fe.contact.law import ContactStatus
-from fe.contact.newton import Iterate, Problem, Step, evaluate, newton_step, sparse_product
+from fe.contact.newton import Step, newton_step
+from fe.contact.residual import Iterate, Problem, evaluate, sparse_product
 from fe.contact.state import ContactSettings
 
 FloatArray = npt.NDArray[np.float64]

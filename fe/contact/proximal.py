@@ -35,7 +35,8 @@ import numpy as np
 import numpy.typing as npt
 
 from fe.contact.globalise import Run, line_search
-from fe.contact.newton import Iterate, Problem, evaluate, newton_step
+from fe.contact.newton import newton_step
+from fe.contact.residual import Iterate, Problem, evaluate
 from fe.contact.state import ContactSettings, ProximalOptions
 
 FloatArray = npt.NDArray[np.float64]

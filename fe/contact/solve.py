@@ -8,12 +8,11 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ConvergenceError, ParameterError
-from fe.contact.globalise import RESCUE_FACTORS as RESCUE_FACTORS
 from fe.contact.globalise import newton_loop
 from fe.contact.krylov import workspace_for
 from fe.contact.law import ContactStatus
-from fe.contact.newton import Iterate, Problem, Solved, evaluate, sparse_product
 from fe.contact.proximal import proximal_loop
+from fe.contact.residual import Iterate, Problem, Solved, evaluate, sparse_product
 from fe.contact.state import (
     ContactSettings,
     ContactState,

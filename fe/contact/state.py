@@ -16,7 +16,7 @@ from cad.errors import ParameterError, check_range
 from fe.contact.krylov import KrylovOptions
 from fe.contact.law import coulomb_step
 from fe.contact.memo import ArrayMemo
-from fe.contact.newton import Problem, evaluate
+from fe.contact.residual import Problem, evaluate
 
 FloatArray = npt.NDArray[np.float64]
 

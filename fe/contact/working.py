@@ -37,7 +37,7 @@ from fe.contact.dense import gather_block, is_subset
 from fe.contact.krylov import Base, release, workspace_for
 from fe.contact.law import ContactStatus
 from fe.contact.memo import ArrayMemo
-from fe.contact.newton import Iterate, Problem, Solved, evaluate, sparse_product
+from fe.contact.residual import Iterate, Problem, Solved, evaluate, sparse_product
 from fe.contact.state import ContactSettings, ContactState
 
 FloatArray = npt.NDArray[np.float64]

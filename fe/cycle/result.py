@@ -26,7 +26,7 @@ from fe.contact.state import ContactState
 from fe.cycle.protocol import CycleSettings
 
 if TYPE_CHECKING:  # the general hinge's condensed operators, which the result keeps
-    from fe.general.condensed import Condensed
+    from fe.structure.condensed import Condensed
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -17,8 +17,8 @@ import numpy.typing as npt
 from cad.errors import ParameterError
 from fe.contact.state import ContactSettings
 from fe.cycle.protocol import CycleSettings
-from fe.general.condensed import Condensed
 from fe.general.system import HingeSystem
+from fe.structure.condensed import Condensed
 
 FloatArray = npt.NDArray[np.float64]
 Values = Mapping[str, float]

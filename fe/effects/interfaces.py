@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 from cad.errors import ParameterError
 from fe.effects.base import Effect, EffectContext, ParamSpec, Values
-from fe.general.condensed import Condensed
+from fe.structure.condensed import Condensed
 
 
 @dataclass(frozen=True)

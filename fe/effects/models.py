@@ -21,8 +21,8 @@ from fe.effects.base import (
     add_diagonal,
     map_configs,
 )
-from fe.general.condensed import Condensed
 from fe.general.faces import FOOTPRINT_RADIUS_RATIO, clamped_faces
+from fe.structure.condensed import Condensed
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ An effect acts in one (or both) of two places, so that none of them needs a new 
 new factorisation:
 
 * ``apply(configs, values, ctx)`` on the condensed system ``w = W p + G α + w0`` of each
-  touching configuration (``fe.general.system.Condensed``): it returns new ``Condensed``
+  touching configuration (``fe.structure.condensed.Condensed``): it returns new ``Condensed``
   objects (``dataclasses.replace``), never modifies its input. Interface compliances add
   to the diagonal blocks of ``W``; an interference shifts the normal gap ``w0``; face
   friction appends contact points (condensed with the factorised hinge ``ctx.system``,
@@ -57,10 +57,10 @@ from fe.effects.models import (
     RoughnessSoftening,
     TangentialCompliance,
 )
-from fe.general.condensed import Condensed
 from fe.general.cycle import configurations, run_cycle
 from fe.general.faces import faces_only, unloaded_state
 from fe.general.system import GRIP, HingeSystem
+from fe.structure.condensed import Condensed
 
 __all__ = [
     "REGISTRY",

@@ -15,8 +15,8 @@ from scipy.optimize import linprog
 from cad.errors import ConvergenceError
 from fe.contact.law import ContactStatus
 from fe.contact.state import ContactState
-from fe.general.condensed import Condensed
 from fe.general.system import GRIP, N_PIN_MODES
+from fe.structure.condensed import Condensed
 
 FloatArray = npt.NDArray[np.float64]
 

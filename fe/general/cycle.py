@@ -36,17 +36,18 @@ from fe.contact.state import ContactSettings, ContactState
 from fe.cycle.driver import CycleStep, Recorded, Target, drive
 from fe.cycle.protocol import CycleSettings, stage_targets
 from fe.cycle.result import CycleResult, Increment
-from fe.general.condensed import Condensed
+from fe.general.condensation import condense
 from fe.general.crossing import has_faces
 from fe.general.freeplay import SlidingStep
-from fe.general.geometry import contact_geometry, split_window
 from fe.general.increments import (
     Branch,
     advance_force,
     check_window,
     record_increment,
 )
-from fe.general.system import GRIP, N_RIGID, HingeSystem, condense, is_tang_side
+from fe.general.system import GRIP, N_RIGID, HingeSystem, is_tang_side
+from fe.structure.condensed import Condensed
+from fe.surfaces.geometry import contact_geometry, split_window
 
 logger = logging.getLogger(__name__)
 

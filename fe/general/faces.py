@@ -12,7 +12,7 @@ every stored result), so the points are found from the mesh itself:
   tang. Each slave is projected along z onto it (a plane: the closest-point projection
   of ``project_on_facets``), giving the facet and its bilinear weights.
 
-Frames follow ``fe.general.geometry``: ``n`` is the master's outward normal (toward the
+Frames follow ``fe.surfaces.geometry``: ``n`` is the master's outward normal (toward the
 slave, ``∓e_z``), ``t1 = e_x`` (the load direction), ``t2 = n × t1``; ``g0`` is the
 geometric axial gap (the effect that uses them replaces it by a clamp overlap).
 
@@ -37,14 +37,14 @@ from cad.surfaces import Cylinder, Plane
 from fe.assembly import dofs_of
 from fe.contact.solve import solve_increment
 from fe.contact.state import ContactSettings, ContactState
-from fe.general.condensed import Condensed
-from fe.general.geometry import (
+from fe.general.system import GRIP, HingeSystem
+from fe.structure.condensed import Condensed
+from fe.surfaces.geometry import (
     ContactGeometry,
     bilinear_weights,
     contact_operator,
     project_on_facets,
 )
-from fe.general.system import GRIP, HingeSystem
 from mesh.facets import boundary_facets, select_facets
 from mesh.hexmesh import HexMesh
 

@@ -59,7 +59,6 @@ from fe.contact.state import ContactSettings, ContactState, IncrementResult
 from fe.cycle.driver import Recorded, Target
 from fe.cycle.protocol import CycleSettings, stage_targets, with_cutbacks
 from fe.cycle.result import CycleResult, Increment
-from fe.general.condensed import Condensed
 from fe.general.crossing import (
     consistent_w,
     engagement,
@@ -70,6 +69,7 @@ from fe.general.crossing import (
 )
 from fe.general.increments import Branch, branch_start, record_increment, solve_at_force
 from fe.general.system import GRIP, N_PIN_MODES, N_RIGID
+from fe.structure.condensed import Condensed
 
 FloatArray = npt.NDArray[np.float64]
 

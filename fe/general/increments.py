@@ -21,8 +21,8 @@ from fe.contact.solve import solve_increment
 from fe.contact.state import ContactSettings, ContactState, IncrementResult
 from fe.cycle.protocol import CycleSettings, with_cutbacks
 from fe.cycle.result import CycleResult, Increment
-from fe.general.condensed import Condensed
 from fe.general.system import GRIP, N_RIGID, HingeSystem, displacements, outside_gaps
+from fe.structure.condensed import Condensed
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -40,21 +40,20 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from enum import Enum
 from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
-from cad.errors import MeshQualityError, ParameterError, ResourceError
+from cad.errors import MeshQualityError
 from cad.model import PairKind, SurfacePair
 from cad.surfaces import Cylinder
 from fe.assembly import assemble_stiffness, dofs_of
 from fe.element import ElementType
-from fe.general.condensed import Condensed
-from fe.general.geometry import ContactGeometry, contact_operator
 from fe.linalg.sparse import Factorization, inverse_block
+from fe.structure.condensed import BLOCK_RHS, Condensed
+from fe.structure.supports import rigid_modes, three_two_one
 from mesh.hexmesh import HexMesh
 
 logger = logging.getLogger(__name__)
@@ -70,13 +69,6 @@ GRIP = 6
 
 N_RIGID = N_PIN_MODES + 1
 """Rigid amplitudes of the hinge's condensed problem: the pin's six modes and the grip."""
-
-BLOCK_RHS = 128
-"""Right-hand sides per block solve when condensing (see benchmarks/bench_assembly.py).
-
-Also the best for the pin solves of :func:`pin_delassus`: level 1 at zero clearance
-(9 408 rows, one thread, a busy day), 32 / 64 / 128 / 256 / 512 right-hand sides took
-78 / 72–73 / 68–70 / 73 / 84–87 s, the same W to the bit."""
 
 RECOVER_BLOCK = 32
 """Right-hand sides per block solve when recovering displacements (bounds the work memory)."""
@@ -107,17 +99,6 @@ TANG = "tang"
 def is_tang_side(pair: SurfacePair) -> bool:
     """True for the pin–tang contact pair (its master face belongs to the tang)."""
     return pair.master.startswith(TANG)
-
-
-def rigid_modes(nodes: FloatArray, centre: FloatArray) -> FloatArray:
-    """Six rigid-body modes of a node set, shape (3 n, 6): translations x, y, z [mm/mm], rotations [mm/rad]."""
-    d = nodes - centre
-    R = np.zeros((len(nodes), 3, 6))
-    R[:, 0, 0] = R[:, 1, 1] = R[:, 2, 2] = 1.0
-    R[:, :, 3] = np.cross([1.0, 0, 0], d)
-    R[:, :, 4] = np.cross([0, 1.0, 0], d)
-    R[:, :, 5] = np.cross([0, 0, 1.0], d)
-    return R.reshape(-1, 6)
 
 
 @dataclass
@@ -300,28 +281,6 @@ class HingeSystem:
         return 3 * self.mesh.n_nodes
 
 
-def nearest_node(mesh: HexMesh, nodes: IntArray, point: tuple[float, float, float]) -> int:
-    """The node of ``nodes`` closest to ``point`` [mm]."""
-    x = np.asarray(mesh.nodes)[nodes]
-    return int(nodes[np.argmin(np.linalg.norm(x - np.asarray(point), axis=1))])
-
-
-def three_two_one(mesh: HexMesh, nodes: IntArray) -> IntArray:
-    """Six DOFs that hold a floating body along the z axis rigidly and no more (3-2-1).
-
-    The node nearest the axis at each end (x, y, z and x, y) and one on the rim at the
-    low end (y), shape (6,). Only to factorise the body: its rigid modes are carried as
-    amplitudes, and the reactions at these DOFs vanish for a self-equilibrated load.
-    """
-    x = np.asarray(mesh.nodes)[nodes]
-    lo, hi = x[:, 2].min(), x[:, 2].max()
-    r = float(np.hypot(x[:, 0], x[:, 1]).max())
-    a = nearest_node(mesh, nodes, (0, 0, lo))
-    b = nearest_node(mesh, nodes, (0, 0, hi))
-    c = nearest_node(mesh, nodes, (r, 0, lo))
-    return np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * c + 1], dtype=np.int64)
-
-
 def build_system(
     mesh: HexMesh, kind: ElementType = ElementType.INCOMPATIBLE, *, cache_dir: Path | None = None
 ) -> HingeSystem:
@@ -407,282 +366,6 @@ def _restricted_inverse(
 
 def _nodes_key(slave_nodes: IntArray, master_nodes: IntArray) -> str:
     return hashlib.sha256(slave_nodes.tobytes() + b"|" + master_nodes.tobytes()).hexdigest()[:16]
-
-
-def _columns(C: sp.csr_matrix, nodes: IntArray) -> sp.csr_matrix:
-    """Columns of C at the DOFs of ``nodes``, shape (3m, 3 len(nodes))."""
-    return C[:, dofs_of(nodes)]
-
-
-MEMORY_CHECK_ENV = "HINGELAB_MEMORY_CHECK"
-"""Set to ``0`` to skip the memory check of :func:`condense_path` (e.g. with swap the
-estimate ignores)."""
-
-CONDENSE_ENV = "HINGELAB_CONDENSE"
-"""Set to ``compliance`` or ``solves`` to force a :class:`CondensePath`."""
-
-
-def available_memory_bytes() -> int | None:
-    """Memory the kernel can still give without swapping (``MemAvailable``), or None if unknown."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        return None
-    return None
-
-
-CONTACT_PHASE_W = 1.0
-"""Peak memory the contact phase adds to a zero-clearance cycle, in units of ``W``'s size.
-
-The closed points' block of ``W`` or the working set's (one of them at a time), its
-float32 copy, the float32 base LU and the next one. Measured (resident-set peak over the
-phase above its start, ``/proc/self/status`` VmHWM reset before it): level 0 0.87 W (fixed
-costs dominate a 0.05 GB ``W``), level 1 0.74 W (0.71 GB ``W``), level 2 about 0.5 W (a
-10.2 GB ``W`` condensed by pin solves: 13.6 → 18.6 GB, sampled every 20 s). Before the
-contact caches kept only one set of blocks (fe.contact.working) it was 1.52 W at level 1,
-and level 2 was killed by the out-of-memory killer at 24.3 GB in increment 43 of 50
-(with 0.6 W, the estimate then, it had been let through)."""
-
-
-def dense_memory_bytes(b_s: int, b_m: int, n: int, *, compliance_kept: bool = False) -> int:
-    """Peak of the dense matrices the condensation of one configuration allocates [bytes].
-
-    Compliance blocks not yet kept each take their Schur complement and PARDISO's copy of
-    it (the slave block's result is held while the master's is made); then both blocks
-    and ``W`` are held while ``W`` is formed (:func:`delassus`); the contact phase adds
-    ``CONTACT_PHASE_W`` times ``W``.
-
-    Args:
-        b_s: Slave compliance DOFs.
-        b_m: Master compliance DOFs.
-        n: Rows of ``W`` (three per contact point).
-        compliance_kept: The blocks are already in memory (not counted again).
-    """
-    blocks = 0 if compliance_kept else 8 * (b_s**2 + b_m**2)
-    schur = 0 if compliance_kept else 8 * max(2 * b_s**2, b_s**2 + 2 * b_m**2)
-    condense = blocks + 8 * n**2 + int(CONTACT_PHASE_W * 8 * n**2)
-    return max(schur, condense)
-
-
-def solves_memory_bytes(b_m: int, n: int) -> int:
-    """Peak of the dense matrices of the condensation by pin solves (:func:`pin_delassus`).
-
-    The master block's Schur complement and PARDISO's copy of it; then ``W`` and the master
-    block while ``W`` is formed; then ``W`` and the contact phase's ``CONTACT_PHASE_W``
-    times ``W`` (the master block is released with the condensation). No slave block is
-    formed.
-
-    Args:
-        b_m: Master compliance DOFs.
-        n: Rows of ``W`` (three per contact point).
-    """
-    return 8 * max(2 * b_m**2, b_m**2 + n**2, int((1.0 + CONTACT_PHASE_W) * n**2))
-
-
-class CondensePath(Enum):
-    """How :func:`condense` forms ``W``.
-
-    COMPLIANCE: from the nodal compliance blocks of the slave (pin) and master (lug)
-    nodes, each a Schur complement, kept by the system for every later configuration of
-    the same nodes (fastest; needs both blocks and ``W`` in memory at once).
-    SOLVES: the pin's part ``C_p K_p⁻¹ C_pᵀ`` by block solves with the pin's sparse factor
-    (:func:`pin_delassus`), written straight into ``W``, and only the master block as a
-    Schur complement, released afterwards: about half the memory of COMPLIANCE at zero
-    clearance, where the slave block is as large as ``W``, and slower.
-    """
-
-    COMPLIANCE = "compliance"
-    SOLVES = "solves"
-
-
-def condense_path(
-    system: HingeSystem, slave_nodes: IntArray, master_nodes: IntArray, m: int
-) -> CondensePath:
-    """Choose how to condense, before allocating any dense matrix.
-
-    COMPLIANCE where its matrices fit in the available memory (compliance blocks the
-    system keeps are not counted again), else SOLVES where those fit, else raise.
-    ``HINGELAB_CONDENSE`` (``compliance`` or ``solves``) forces a path;
-    ``HINGELAB_MEMORY_CHECK=0`` or an unknown available memory takes COMPLIANCE unchecked.
-
-    Raises:
-        ResourceError: Neither path fits, naming the sizes, the estimates and the memory
-            available.
-        ParameterError: ``HINGELAB_CONDENSE`` names no path.
-    """
-    forced = os.environ.get(CONDENSE_ENV)
-    if forced is not None:
-        try:
-            return CondensePath(forced)
-        except ValueError:
-            raise ParameterError(
-                f"{CONDENSE_ENV} = {forced!r}: expected one of {[p.value for p in CondensePath]}"
-            ) from None
-    b_s, b_m, n = 3 * len(slave_nodes), 3 * len(master_nodes), 3 * m
-    available = available_memory_bytes()
-    if os.environ.get(MEMORY_CHECK_ENV, "1") == "0" or available is None:
-        return CondensePath.COMPLIANCE
-    kept = system.has_compliance(slave_nodes, master_nodes)
-    need = dense_memory_bytes(b_s, b_m, n, compliance_kept=kept)
-    if need <= available:
-        return CondensePath.COMPLIANCE
-    low = solves_memory_bytes(b_m, n)
-    if low <= available:
-        logger.info(
-            "condensing %d points by pin solves: the compliance blocks would need %s, "
-            "%s are available (this path needs %s)",
-            m,
-            _size(need),
-            _size(available),
-            _size(low),
-        )
-        return CondensePath.SOLVES
-    raise ResourceError(
-        f"condensing {m} contact points needs about {_size(need)} of dense matrices "
-        f"(compliance blocks of {b_s} and {b_m} DOFs, W of {n}² entries), or {_size(low)} "
-        f"by pin solves, and {_size(available)} are available: use a coarser mesh "
-        f"(refinement), or a clearance with a contact window (CycleSettings.contact_window) "
-        f"so that fewer points are condensed; {MEMORY_CHECK_ENV}=0 skips this check"
-    )
-
-
-def _size(n_bytes: int) -> str:
-    return f"{n_bytes / 1e9:.1f} GB" if n_bytes >= 1e8 else f"{n_bytes / 1e6:.1f} MB"
-
-
-CONDENSE_ROWS = 512
-"""Rows of ``W`` formed at a time by :func:`delassus` (a few MB per temporary)."""
-
-
-def delassus(
-    Cs: sp.csr_matrix, S_slave: FloatArray, Cm: sp.csr_matrix, S_master: FloatArray
-) -> FloatArray:
-    """``W = ½ (V + Vᵀ)`` with ``V = C_s S_slave C_sᵀ + C_m S_master C_mᵀ``, by blocks of rows.
-
-    Only ``W`` and blocks of ``CONDENSE_ROWS`` rows are allocated: the whole-matrix
-    expression held three more arrays of W's size (level 1 at zero clearance: 2.2 GB
-    traced against 0.84 GB, 6.6 s against 5.1 s, the same numbers bit for bit), which is
-    what a zero-clearance level 2 (a 36 000² W) cannot afford.
-
-    Args:
-        Cs: Contact operator's columns at the slave nodes' DOFs, shape (3m, b_s).
-        S_slave: Compliance at those DOFs, shape (b_s, b_s) [mm/N].
-        Cm: Contact operator's columns at the master nodes' DOFs, shape (3m, b_m).
-        S_master: Compliance at those DOFs, shape (b_m, b_m) [mm/N].
-
-    Returns:
-        The Delassus operator, shape (3m, 3m), float64 [mm/N], exactly symmetric.
-    """
-    n = Cs.shape[0]
-    W = np.empty((n, n))
-    for i in range(0, n, CONDENSE_ROWS):
-        rows = slice(i, min(i + CONDENSE_ROWS, n))
-        W[rows] = (Cs @ (Cs[rows] @ S_slave).T).T
-    return _symmetrised(_add_congruence(W, Cm, S_master))
-
-
-def _add_congruence(W: FloatArray, C: sp.csr_matrix, S: FloatArray) -> FloatArray:
-    """``W += C S Cᵀ`` in place, by blocks of ``CONDENSE_ROWS`` rows; returns W."""
-    n = W.shape[0]
-    for i in range(0, n, CONDENSE_ROWS):
-        rows = slice(i, min(i + CONDENSE_ROWS, n))
-        W[rows] += (C @ (C[rows] @ S).T).T
-    return W
-
-
-def _symmetrised(W: FloatArray) -> FloatArray:
-    """``W ← ½ (W + Wᵀ)`` in place, by blocks of ``CONDENSE_ROWS`` rows; returns W."""
-    n = W.shape[0]
-    for i0 in range(0, n, CONDENSE_ROWS):
-        i1 = min(i0 + CONDENSE_ROWS, n)
-        mean = 0.5 * (W[i0:i1, i0:] + W[i0:, i0:i1].T)
-        W[i0:i1, i0:] = mean
-        W[i0:, i0:i1] = mean.T
-    return W
-
-
-def pin_delassus(system: HingeSystem, C: sp.csr_matrix, master_nodes: IntArray) -> FloatArray:
-    """``W`` with its pin part ``C_p K_p⁻¹ C_pᵀ`` from block solves (``CondensePath.SOLVES``).
-
-    Blocks of ``BLOCK_RHS`` rows of ``C_p`` (the contact operator on the pin's free DOFs)
-    are solved with the pin's sparse factor and multiplied back into rows of ``W``; the
-    lugs' part comes from the master nodes' compliance as in :func:`delassus`. No
-    compliance block of the pin's nodes exists at any time (at zero clearance it is as
-    large as ``W``). The same matrix as :func:`delassus` to round-off.
-
-    Args:
-        system: The factorised hinge (the pin's factor is made here if needed, and
-            released after use in ``low_memory`` mode).
-        C: Contact operator, shape (3m, n_dof).
-        master_nodes: Sorted lug nodes the points use, shape (n_m,).
-
-    Returns:
-        The Delassus operator, shape (3m, 3m), float64 [mm/N], exactly symmetric.
-    """
-    S_master = system.lug_compliance(master_nodes)
-    Cp = sp.csr_matrix(C[:, system.pin_free])
-    CpT = sp.csc_matrix(Cp.T)
-    n = C.shape[0]
-    W = np.empty((n, n))
-    factor = system.pin_factor
-    for i in range(0, n, BLOCK_RHS):
-        rows = slice(i, min(i + BLOCK_RHS, n))
-        W[rows] = np.asarray(Cp @ factor.solve(CpT[:, rows].toarray())).T
-    del factor
-    system.release_factor("pin")
-    return _symmetrised(_add_congruence(W, _columns(C, master_nodes), S_master))
-
-
-def condense(
-    system: HingeSystem, geo: ContactGeometry, excluded: ContactGeometry | None = None
-) -> Condensed:
-    """Condense the hinge on the contact points of a configuration.
-
-    ``W = C_s S_slave C_sᵀ + C_m S_master C_mᵀ`` with the nodal compliances of the nodes
-    the points use (computed once per node set) and this configuration's local operators;
-    where those blocks cannot fit in memory, the pin's part by solves instead
-    (:func:`condense_path`, :func:`pin_delassus`).
-
-    Raises:
-        ResourceError: If neither way of forming ``W`` fits in the available memory.
-
-    Args:
-        system: The factorised hinge.
-        geo: The contact points solved for.
-        excluded: Points left out of the contact window, kept to check that they stay open.
-    """
-    slave_nodes = np.unique(geo.slave)
-    master_nodes = np.unique(geo.master_nodes)
-    path = condense_path(system, slave_nodes, master_nodes, len(geo.slave))
-    if path is CondensePath.COMPLIANCE:
-        S_slave, S_master = system.compliance(slave_nodes, master_nodes)
-        t1 = time.perf_counter()
-        C = contact_operator(geo, system.n_dof)
-        W = delassus(_columns(C, slave_nodes), S_slave, _columns(C, master_nodes), S_master)
-    else:  # forming W by solves counts as compliance: no blocks to time apart
-        C = contact_operator(geo, system.n_dof)
-        t0 = time.perf_counter()
-        W = pin_delassus(system, C, master_nodes)
-        t1 = time.perf_counter()
-        system.timings_s["compliance"] = system.timings_s.get("compliance", 0.0) + t1 - t0
-    W.setflags(write=False)  # constant: the contact solver then checks it once per cycle
-    G = np.column_stack([C @ system.pin_R, C @ system.u_grip])
-    w0 = np.column_stack([geo.g0, np.zeros((len(geo.g0), 2))])
-    outside = None if excluded is None or len(excluded.slave) == 0 else excluded
-    C_out = None if outside is None else contact_operator(outside, system.n_dof)
-    return Condensed(
-        geo=geo,
-        C=C,
-        W=W,
-        w0=w0,
-        wall_s=time.perf_counter() - t1,
-        G=G,
-        outside=outside,
-        C_outside=C_out,
-    )
 
 
 def displacement(

@@ -3,21 +3,23 @@
 * :mod:`fe.interop.inp` — write a meshed hinge as an ABAQUS/CalculiX input deck: nodes,
   C3D8I elements per part, materials, named node/element/surface sets, frictional contact
   pairs (slave = pin side), ties, the grip boundary conditions and the load history
-  0 → +Fg → −Fg → +Fg as three ``*STEP`` blocks, all commented;
+  0 → +Fg → −Fg → +Fg as three ``*STEP`` blocks (:mod:`fe.interop.inp_steps`), all
+  commented, with labels and numbers as :mod:`fe.interop.inp_names` writes them;
 * :mod:`fe.interop.deck_settings` — what the deck is asked to be (``DeckSettings``: load,
   penalty or mortar contact, stick slope, increments, ccx tolerances);
 * :mod:`fe.interop.ccx` — run CalculiX (``ccx``) on a deck and read its ``.dat`` file
   (the grip displacement and the force through the hinge per increment) and ``.sta`` file
   (increments, iterations, cut-backs).
 
-Both import only ``cad``, ``mesh``, numpy and the standard library, so they do not move
+They import only ``cad``, ``mesh``, numpy and the standard library, so they do not move
 when the solver inside ``fe`` does. A one-element cube pulled by 100 N:
 
 >>> import numpy as np
 >>> from cad.materials import Material
 >>> from cad.model import FaceRole, NamedFace
 >>> from cad.surfaces import Plane
->>> from fe.interop.inp import DeckSettings, deck_text
+>>> from fe.interop.deck_settings import DeckSettings
+>>> from fe.interop.inp import deck_text
 >>> from mesh.hexmesh import HexMesh
 >>> corners = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0),
 ...            (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]  # VTK order = C3D8 order

@@ -179,7 +179,7 @@ def loop_from_dat(
 
     Args:
         blocks: From ``parse_dat``.
-        grip_set: The grip reference node set (``fe.interop.inp.GRIP_REF_SET``).
+        grip_set: The grip reference node set (``fe.interop.inp_names.GRIP_REF_SET``).
         fixed_sets: The fixed faces' node sets (their totals are summed).
         dof: Load direction, 1-3.
 

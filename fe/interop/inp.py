@@ -34,9 +34,7 @@ What goes where (``**`` lines in the deck say the same next to each block):
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -51,14 +49,14 @@ from fe.interop.deck_settings import (
     ContactType,
     DeckSettings,
 )
+from fe.interop.inp_names import GRIP_REF_SET, Roles, inp_name, num
+from fe.interop.inp_steps import steps
 from mesh.hexmesh import HexMesh
 
 __all__ = [
     "C3D8_FACES",
-    "GRIP_REF_SET",
     "deck_text",
     "facet_element_faces",
-    "inp_name",
     "write_deck",
 ]
 
@@ -82,23 +80,7 @@ C3D8_FACES: tuple[tuple[int, int, int, int], ...] = (
       1 -------- 2            mesh.hexmesh with every index + 1)
 """
 
-GRIP_REF_SET = "grip_ref"
-"""NSET holding the one node that carries the grip force (and whose x is the grip's)."""
-
 _PER_LINE = 8
-_NAME_RE = re.compile(r"[^A-Za-z0-9_]")
-
-
-def inp_name(name: str) -> str:
-    """Return ``name`` as a deck label: letters, digits and ``_``, starting with a letter.
-
-    Raises:
-        ParameterError: If ``name`` is empty.
-    """
-    if not name:
-        raise ParameterError("a set, part or material name must not be empty")
-    out = _NAME_RE.sub("_", name)
-    return out if out[0].isalpha() else "N_" + out
 
 
 def facet_element_faces(mesh: HexMesh, facets: IntArray) -> tuple[IntArray, IntArray]:
@@ -132,16 +114,6 @@ def _rows(values: Iterable[object], per_line: int = _PER_LINE) -> list[str]:
     return [", ".join(items[i : i + per_line]) for i in range(0, len(items), per_line)]
 
 
-def _num(x: float) -> str:
-    """Format a number in at most 20 characters, always with a point or an exponent.
-
-    CalculiX reads fields of 20 characters at most, and took a spring constant written
-    as ``50`` for a missing data line (``50.`` is read).
-    """
-    out = f"{float(x):.13g}"
-    return out if any(c in out for c in ".en") else out + "."
-
-
 def _load_axis(face: NamedFace) -> tuple[int, float]:
     """Return (deck DOF 1-3, sign) of a LOAD face's outward normal, which must be axis-aligned."""
     if not isinstance(face.surface, Plane):
@@ -153,14 +125,7 @@ def _load_axis(face: NamedFace) -> tuple[int, float]:
     return axis + 1, float(np.sign(n[axis]))
 
 
-@dataclass(frozen=True)
-class _Roles:
-    fixed: tuple[str, ...]
-    load: str
-    floating: tuple[str, ...]
-
-
-def _roles(mesh: HexMesh, faces: Mapping[str, NamedFace]) -> _Roles:
+def _roles(mesh: HexMesh, faces: Mapping[str, NamedFace]) -> Roles:
     named = {n: faces[n] for n in mesh.facet_sets if n in faces}
     fixed = tuple(sorted(n for n, f in named.items() if f.role is FaceRole.FIXED))
     load = sorted(n for n, f in named.items() if f.role is FaceRole.LOAD)
@@ -170,7 +135,7 @@ def _roles(mesh: HexMesh, faces: Mapping[str, NamedFace]) -> _Roles:
         raise ParameterError(f"the mesh needs exactly one LOAD facet set, got {load}")
     held = {named[n].part for n in (*fixed, *load)}
     floating = tuple(p for p in mesh.part_names if p not in held)
-    return _Roles(fixed, load[0], floating)
+    return Roles(fixed, load[0], floating)
 
 
 def _header(mesh: HexMesh, s: DeckSettings, title: str) -> list[str]:
@@ -187,7 +152,7 @@ def _header(mesh: HexMesh, s: DeckSettings, title: str) -> list[str]:
 
 def _geometry(mesh: HexMesh) -> list[str]:
     out = ["**", "** ---- Nodes [mm] ----", "*NODE, NSET=all_nodes"]
-    out += [f"{i + 1}, {_num(x)}, {_num(y)}, {_num(z)}" for i, (x, y, z) in enumerate(mesh.nodes)]
+    out += [f"{i + 1}, {num(x)}, {num(y)}, {num(z)}" for i, (x, y, z) in enumerate(mesh.nodes)]
     out += ["**", "** ---- Elements: C3D8I (incompatible modes), one ELSET per part ----"]
     out += ["** Node order C3D8 = VTK hexahedron: 1-2-3-4 bottom, 5-6-7-8 above them."]
     for p in mesh.part_names:
@@ -222,7 +187,7 @@ def _materials(mesh: HexMesh) -> list[str]:
             out += [
                 f"*MATERIAL, NAME={labels[m]}",
                 "*ELASTIC",
-                f"{_num(m.young_mpa)}, {_num(m.poisson)}",
+                f"{num(m.young_mpa)}, {num(m.poisson)}",
             ]
     for p, m in zip(mesh.part_names, mesh.materials, strict=True):
         out += [f"*SOLID SECTION, ELSET={inp_name(p)}, MATERIAL={labels[m]}"]
@@ -236,9 +201,9 @@ def _normal_law(s: DeckSettings) -> list[str]:
             "** Normal: hard contact (no *SURFACE BEHAVIOR: the mortar method's Lagrange",
             "** multipliers enforce zero penetration, as our solver does).",
         ]
-    law = _num(s.penalty_mpa_per_mm)
+    law = num(s.penalty_mpa_per_mm)
     if s.contact is ContactType.NODE_TO_SURFACE:
-        law += f", {_num(s.tension_mpa)}"
+        law += f", {num(s.tension_mpa)}"
     return [
         "** Normal: penalty, pressure = slope x overclosure [MPa/mm]"
         + (", then the tension for open gaps [MPa]." if "," in law else "."),
@@ -256,13 +221,13 @@ def _friction(s: DeckSettings) -> list[str]:
             "** Friction: Coulomb mu; the stick slope is so large that stick is exact (the",
             "** mortar method takes its inverse as a tangential compliance).",
             "*FRICTION",
-            f"{_num(s.mu)}, {_num(EXACT_STICK_SLOPE_MPA_PER_MM)}",
+            f"{num(s.mu)}, {num(EXACT_STICK_SLOPE_MPA_PER_MM)}",
         ]
     return [
         "** Friction: Coulomb mu, then the stick slope [MPa/mm] (elastic slip before sliding;",
         "** our solver sticks exactly, so a stiffer slope is closer to it).",
         "*FRICTION",
-        f"{_num(s.mu)}, {_num(s.stick_slope_mpa_per_mm)}",
+        f"{num(s.mu)}, {num(s.stick_slope_mpa_per_mm)}",
     ]
 
 
@@ -293,12 +258,12 @@ def _interactions(mesh: HexMesh, s: DeckSettings) -> list[str]:
                 f"** ADJUST: slave nodes within {s.adjust_mm:g} mm of the master facets, or"
                 " penetrating them, start on them."
             ]
-            head += f", ADJUST={_num(s.adjust_mm)}"
+            head += f", ADJUST={num(s.adjust_mm)}"
         out += [head, f"{slave}, {master}"]
     return out
 
 
-def _boundary(mesh: HexMesh, faces: Mapping[str, NamedFace], roles: _Roles) -> list[str]:
+def _boundary(mesh: HexMesh, faces: Mapping[str, NamedFace], roles: Roles) -> list[str]:
     dof, _ = _load_axis(faces[roles.load])
     across = [d for d in (1, 2, 3) if d != dof]
     grip = mesh.set_nodes(roles.load) + 1
@@ -322,7 +287,7 @@ def _boundary(mesh: HexMesh, faces: Mapping[str, NamedFace], roles: _Roles) -> l
     return out
 
 
-def _springs(mesh: HexMesh, s: DeckSettings, roles: _Roles, dof: int, first: int) -> list[str]:
+def _springs(mesh: HexMesh, s: DeckSettings, roles: Roles, dof: int, first: int) -> list[str]:
     out: list[str] = []
     eid = first
     for part in roles.floating:
@@ -341,7 +306,7 @@ def _springs(mesh: HexMesh, s: DeckSettings, roles: _Roles, dof: int, first: int
             out += [f"*ELEMENT, TYPE=SPRING1, ELSET={elset}"]
             out += [f"{eid + i}, {n}" for i, n in enumerate(nodes.tolist())]
             eid += len(nodes)
-            out += [f"*SPRING, ELSET={elset}", str(d), _num(k)]
+            out += [f"*SPRING, ELSET={elset}", str(d), num(k)]
     if s.grip_spring > 0.0:
         ref = int(mesh.set_nodes(roles.load)[0]) + 1
         out += [
@@ -353,113 +318,8 @@ def _springs(mesh: HexMesh, s: DeckSettings, roles: _Roles, dof: int, first: int
             f"{eid}, {ref}",
             "*SPRING, ELSET=spring_grip",
             str(dof),
-            _num(s.grip_spring),
+            num(s.grip_spring),
         ]
-    return out
-
-
-def _controls(s: DeckSettings) -> list[str]:
-    """The ``*CONTROLS`` cards of a step: iteration limits, and tolerances if asked."""
-    out = [
-        "** Stick/slip changes need more Newton iterations than the defaults allow before a",
-        "** cut-back: divergence checks from iteration 8, at most 50 iterations, 10 cut-backs.",
-        "*CONTROLS, PARAMETERS=TIME INCREMENTATION",
-        "8, 10, 9, 50, 10, 4, 0, 10",
-    ]
-    if s.field_tolerance is None:
-        return out
-    tol = _num(s.field_tolerance)
-    out[-1] = "8, 10, 50, 50, 10, 4, 0, 10"
-    return [
-        *out[:2],
-        "** The looser residual criterion is never used (its iteration I_P = 50, the limit).",
-        *out[2:],
-        "** Convergence: largest residual / average force, largest correction / largest",
-        "** increment, and the residual criterion after I_P iterations.",
-        "*CONTROLS, PARAMETERS=FIELD",
-        f"{tol}, {tol}, , , {tol}",
-    ]
-
-
-def _segments(
-    s: DeckSettings, k: int, previous: float, target: float
-) -> list[tuple[float, float, float, float]]:
-    """A stage as ccx steps: (step time, initial and largest increment, load factor at its end).
-
-    One step, unless ``s.touch_increment_n`` refines the two bands of a reversal where the
-    pin leaves one side of the free play and where it touches the other (five steps whose
-    times add up to 1, so that the total time still counts stages); ``s.settle_increment_n``
-    then sets the first increment of the step after the touch band.
-    """
-    n = max(2, s.increments_per_stage // 2) if k == 0 else s.increments_per_stage
-    if s.touch_increment_n is None or k == 0 or target == previous:
-        return [(1.0, 1.0 / n, 1.0 / n, target)]
-    peak = s.peak_cload_n
-    d = 1.0 if target > previous else -1.0
-    spring = s.grip_spring * 2.0 * s.clearance_mm / peak  # load factor: the spring alone
-    half = s.touch_band_n / peak
-    # leave (-d·spring) and touch (+d·spring), each within a band of ±half, then the peak
-    ends = [-d * spring - d * half, -d * spring + d * half]
-    ends += [d * spring - d * half, d * spring + d * half, target]
-    span = target - previous
-    out, start = [], previous
-    for j, end in enumerate(ends):
-        period = (end - start) / span
-        dt = s.touch_increment_n / (abs(span) * peak) if j in (1, 3) else 1.0 / n
-        dt = min(dt, period)
-        first = dt
-        if j == 4 and s.settle_increment_n is not None:
-            first = min(dt, s.settle_increment_n / (abs(span) * peak))
-        out.append((period, first, dt, end))
-        start = end
-    return out
-
-
-def _steps(s: DeckSettings, roles: _Roles, sign: float, dof: int) -> list[str]:
-    out: list[str] = []
-    previous = 0.0
-    number = 0
-    for k, target in enumerate(s.load_factors):
-        start = previous
-        segments = _segments(s, k, previous, target)
-        for period, first, dt, end in segments:
-            number += 1
-            force = sign * end * s.peak_cload_n
-            what = (
-                f"grip force {start * s.amplitude_n:+g} -> {end * s.amplitude_n:+g} N"
-                if len(segments) == 1
-                else f"*CLOAD {sign * start * s.peak_cload_n:+.6g} -> {force:+.6g} N"
-                f" (stage {k + 1}: to {target * s.amplitude_n:+g} N through the free play)"
-            )
-            out += [
-                "**",
-                f"** ==== Step {number}: {what}, ramped linearly over step time {period:.9g} ====",
-                "** *STATIC: initial increment, step time, smallest increment, largest increment.",
-                "*STEP, INC=10000",
-                "*STATIC",
-                f"{_num(first)}, {_num(period)}, {_num(first * 1e-5)}, {_num(dt)}",
-                *_controls(s),
-                "*CLOAD",
-                f"{GRIP_REF_SET}, {dof}, {_num(force)}",
-                "** Per increment to the .dat file: the grip displacement, and the total reaction of",
-                "** the fixed faces (minus the force carried through the hinge).",
-                f"*NODE PRINT, NSET={GRIP_REF_SET}",
-                "U",
-            ]
-            for name in roles.fixed:
-                out += [f"*NODE PRINT, NSET={inp_name(name)}, TOTALS=ONLY", "RF"]
-            out += [
-                "** Fields for a viewer (.frd): displacements, stresses, contact status/stresses.",
-                "*NODE FILE",
-                "U",
-                "*EL FILE",
-                "S",
-                "*CONTACT FILE",
-                "CDIS, CSTR",
-                "*END STEP",
-            ]
-            start = end
-        previous = target
     return out
 
 
@@ -498,7 +358,7 @@ def deck_text(
         *_boundary(mesh, faces, roles),
         *_springs(mesh, settings, roles, dof, first=mesh.n_elem + 1),
         *_interactions(mesh, settings),
-        *_steps(settings, roles, sign, dof),
+        *steps(settings, roles, sign, dof),
     ]
     return "\n".join(lines) + "\n"
 

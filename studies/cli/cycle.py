@@ -87,7 +87,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab cycle``."""
-    from fe.general.report import write_loop_csv, write_loop_png
+    from fe.cycle.loop_files import write_loop_csv, write_loop_png
     from model.service import ModelService
     from model.spec import DesignPoint, describe_point, hinge_at
 

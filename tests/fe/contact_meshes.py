@@ -29,8 +29,8 @@ import numpy as np
 from cad.materials import Material
 from cad.surfaces import Cylinder, Plane
 from fe.assembly import dofs_of
-from fe.general.condensed import Condensed
-from fe.general.twobody import (
+from fe.structure.condensed import Condensed
+from fe.structure.twobody import (
     TwoBodySystem,
     build_two_body,
     condense,

@@ -46,7 +46,7 @@ from threadpoolctl import threadpool_limits
 from cad.materials import Material
 from fe.contact.solve import solve_increment
 from fe.contact.state import ContactSettings, ContactState
-from fe.general.twobody import displacement, external_response, free_gap
+from fe.structure.twobody import displacement, external_response, free_gap
 from tests.fe.contact_meshes import CylinderOnFlat, plane_strain_modulus, press_rig
 
 STEEL = Material("steel", 210_000.0, 0.30)

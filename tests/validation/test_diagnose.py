@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from validation.candidate_fit import CandidateFit, DiagnoseSettings, MeasuredFeatures
-from validation.diagnose import _verdict, residual_pattern
+from validation.diagnose import _verdict
 from validation.features import loop_features, noise_sigma
 from validation.loops import process_loop
+from validation.misfit import residual_pattern
 
 
 def _meas(n=4):

@@ -9,7 +9,9 @@ import pytest
 from scipy import stats
 
 from validation.candidate_fit import DiagnoseSettings, MeasuredFeatures, chi2
-from validation.diagnose import Verdict, _verdict, residual_pattern, sensitivity
+from validation.diagnose import Verdict, _verdict
+from validation.misfit import residual_pattern
+from validation.sensitivity import sensitivity
 
 
 def _design(clearances=(0.0, 0.1, 0.2), amps=(100.0, 200.0, 300.0, 400.0)):

@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 
 from fe.contact import krylov as contact_krylov
+from fe.contact import krylov_step as contact_krylov_step
 from fe.contact import newton as contact_newton
+from fe.contact import preconditioner as contact_preconditioner
+from fe.contact import residual as contact_residual
+from fe.contact.dense import factor_jacobian
+from fe.contact.gmres import gmres
 from fe.contact.krylov import KrylovOptions
 from fe.contact.solve import solve_increment
 from fe.contact.state import ContactSettings, ContactState, LinearSolver
@@ -29,10 +34,10 @@ def iterate(W, seed, mu=0.3, k=0):
     w_free = rng.normal(scale=0.5, size=(m, 3)) + np.array([-0.3, 0.0, 0.0])
     prev_w = rng.normal(scale=0.2, size=(m, 3))
     G = rng.normal(size=(3 * m, k))
-    prob = contact_newton.Problem(W, w_free, G, rng.normal(size=k), prev_w[:, 1:], mu)
+    prob = contact_residual.Problem(W, w_free, G, rng.normal(size=k), prev_w[:, 1:], mu)
     r = 1.0 / np.diagonal(W).reshape(m, 3).mean(axis=1)
     p = rng.normal(size=(m, 3)) + np.array([0.5, 0.0, 0.0])
-    it = contact_newton.evaluate(prob, p, rng.normal(size=k), r)
+    it = contact_residual.evaluate(prob, p, rng.normal(size=k), r)
     return prob, it, r
 
 
@@ -48,12 +53,12 @@ def test_preconditioner_inverts_the_updated_matrix_exactly():
     lin_a = contact_newton.linearise(prob_a, it_a, r)
     lin_b = contact_newton.linearise(prob_b, it_b, r)
     J_a, J_b = dense_j(prob_a, lin_a), dense_j(prob_b, lin_b)
-    factor = contact_newton.factor_jacobian(J_a.copy(), lin_a.keys)
+    factor = factor_jacobian(J_a.copy(), lin_a.keys)
     base = contact_krylov.Base(factor, lin_a.closed, lin_a.kind, lin_a.u, lin_a.kappa)
     ws = contact_krylov.Workspace()
-    ops = contact_krylov._operators(prob_b, lin_b, ws)
+    ops = contact_preconditioner.operators(prob_b, lin_b, ws)
     opts = KrylovOptions(max_update=1.0, turn_cos=-1.0, kappa_change=1.0)  # keep every slip point
-    pc = contact_krylov._precondition(base, lin_b, ops, opts)
+    pc = contact_preconditioner.precondition(base, lin_b, ops, opts)
     assert pc is not None
     assert len(pc.qN) > 0
     assert len(pc.qO) > 0
@@ -61,10 +66,10 @@ def test_preconditioner_inverts_the_updated_matrix_exactly():
     M = J_b.copy()
     M[np.ix_(pc.qS_new, pc.qS_new)] = J_a[np.ix_(pc.qS_old, pc.qS_old)]
     X = np.random.default_rng(4).normal(size=(len(lin_b.keys), 3))
-    np.testing.assert_allclose(contact_krylov._solve_m(pc, M @ X), X, atol=1e-9)
+    np.testing.assert_allclose(contact_preconditioner._solve_m(pc, M @ X), X, atol=1e-9)
     # Rows and columns of the changed unknowns are those of the exact matrix.
-    np.testing.assert_allclose(contact_krylov._rows(ops, pc.qN), J_b[pc.qN], atol=1e-13)
-    np.testing.assert_allclose(contact_krylov._cols(ops, pc.qN), J_b[:, pc.qN], atol=1e-13)
+    np.testing.assert_allclose(contact_preconditioner._rows(ops, pc.qN), J_b[pc.qN], atol=1e-13)
+    np.testing.assert_allclose(contact_preconditioner._cols(ops, pc.qN), J_b[:, pc.qN], atol=1e-13)
 
 
 def test_slip_point_whose_kappa_moved_is_made_exact():
@@ -75,20 +80,20 @@ def test_slip_point_whose_kappa_moved_is_made_exact():
     lin = contact_newton.linearise(prob, it, r)
     slipping = np.flatnonzero(lin.kind == 1)
     assert len(slipping) >= 2
-    factor = contact_newton.factor_jacobian(dense_j(prob, lin), lin.keys)
+    factor = factor_jacobian(dense_j(prob, lin), lin.keys)
     kappa = lin.kappa.copy()
     moved, nudged = slipping[0], slipping[1]
     kappa[moved] = 0.5 if kappa[moved] < 0.25 else kappa[moved] - 0.25
     kappa[nudged] += 0.01 if kappa[nudged] < 0.5 else -0.01
     base = contact_krylov.Base(factor, lin.closed, lin.kind, lin.u, kappa)
-    ops = contact_krylov._operators(prob, lin, contact_krylov.Workspace())
-    pc = contact_krylov._precondition(base, lin, ops, KrylovOptions(max_update=1.0))
+    ops = contact_preconditioner.operators(prob, lin, contact_krylov.Workspace())
+    pc = contact_preconditioner.precondition(base, lin, ops, KrylovOptions(max_update=1.0))
     assert pc is not None
     changed = set(lin.keys[pc.qN] // 3)
     assert lin.closed[moved] in changed
     assert lin.closed[nudged] not in changed
     assert len(changed) == 1
-    off = contact_krylov._precondition(
+    off = contact_preconditioner.precondition(
         base, lin, ops, KrylovOptions(max_update=1.0, kappa_change=1.0)
     )
     assert off is not None
@@ -99,12 +104,12 @@ def test_gmres_solves_a_nonsymmetric_system_to_its_tolerance():
     rng = np.random.default_rng(0)
     A = np.eye(40) * 4.0 + rng.normal(size=(40, 40))
     b = rng.normal(size=40)
-    sol = contact_krylov.gmres(lambda z: A @ z, lambda z: z, b, 1e-12, 40)
+    sol = gmres(lambda z: A @ z, lambda z: z, b, 1e-12, 40)
     assert sol.converged
     np.testing.assert_allclose(sol.z, np.linalg.solve(A, b), rtol=1e-9)
-    exact = contact_krylov.gmres(lambda z: A @ z, lambda z: np.linalg.solve(A, z), b, 1e-12, 40)
+    exact = gmres(lambda z: A @ z, lambda z: np.linalg.solve(A, z), b, 1e-12, 40)
     assert exact.iterations == 1
-    stalled = contact_krylov.gmres(lambda z: A @ z, lambda z: z, b, 1e-14, 3)
+    stalled = gmres(lambda z: A @ z, lambda z: z, b, 1e-14, 3)
     assert not stalled.converged
 
 
@@ -118,10 +123,10 @@ def test_krylov_step_equals_the_lu_step(k):
     opts = KrylovOptions(
         max_update=1.0, forcing=1e-12, max_iter=200, turn_cos=-1.0, kappa_change=1.0
     )
-    first = contact_krylov.krylov_step(prob_a, it_a, r, 0.0, ws, opts)  # no base: factorises
+    first = contact_krylov_step.krylov_step(prob_a, it_a, r, 0.0, ws, opts)  # no base: factorises
     assert first is not None
     assert not first.reused
-    step = contact_krylov.krylov_step(prob_b, it_b, r, 0.0, ws, opts)  # GMRES on the base
+    step = contact_krylov_step.krylov_step(prob_b, it_b, r, 0.0, ws, opts)  # GMRES on the base
     ref = contact_newton.newton_step(prob_b, it_b, r, 0.0)
     assert step is not None
     assert ref is not None
@@ -247,12 +252,12 @@ def test_form_jacobian_equals_r_w_t(path, block_kind, symmetric, monkeypatch):
 @pytest.mark.parametrize("n_nonzero", [0, 1, 4, 20])
 def test_sparse_product_equals_the_full_product(n_nonzero, plain_max, monkeypatch):
     """W x from the rows of x's support (or the full product when x is dense) is W x."""
-    monkeypatch.setattr(contact_newton, "PLAIN_PRODUCT_MAX", plain_max)
+    monkeypatch.setattr(contact_residual, "PLAIN_PRODUCT_MAX", plain_max)
     W = random_W(30, 7)
     rng = np.random.default_rng(8)
     x = np.zeros((30, 3))
     x[rng.choice(30, n_nonzero, replace=False)] = rng.normal(size=(n_nonzero, 3))
-    np.testing.assert_allclose(contact_newton.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
+    np.testing.assert_allclose(contact_residual.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
 
 
 @pytest.mark.parametrize("max_runs", [200, 3])  # as rectangles of runs; by chunks of rows
@@ -285,11 +290,11 @@ def test_is_subset_agrees_with_isin():
 
 def test_sparse_product_reads_runs_of_rows(monkeypatch):
     """Support in runs of consecutive points, at both ends and alone: still W x."""
-    monkeypatch.setattr(contact_newton, "PLAIN_PRODUCT_MAX", 0)  # 90 rows: by runs
+    monkeypatch.setattr(contact_residual, "PLAIN_PRODUCT_MAX", 0)  # 90 rows: by runs
     W = random_W(30, 7)
     x = np.zeros((30, 3))
     x[[0, 1, 2, 7, 12, 13, 14, 15, 29]] = np.random.default_rng(9).normal(size=(9, 3))
-    np.testing.assert_allclose(contact_newton.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
+    np.testing.assert_allclose(contact_residual.sparse_product(W, x), W @ x.ravel(), atol=1e-13)
 
 
 def test_state_w_is_the_exact_product_after_line_searches():
@@ -315,15 +320,15 @@ def test_w_block_is_kept_only_while_it_holds_the_closed_points():
     lin_b = contact_newton.linearise(prob_b, it_b, r)
     assert not np.all(np.isin(lin_b.closed, lin_a.closed))
     ws = contact_krylov.Workspace()
-    ops_a = contact_krylov._operators(prob_a, lin_a, ws)
-    assert ops_a.W_b is contact_krylov._operators(prob_a, lin_a, ws).W_b  # same set: kept
-    ops_b = contact_krylov._operators(prob_b, lin_b, ws)
+    ops_a = contact_preconditioner.operators(prob_a, lin_a, ws)
+    assert ops_a.W_b is contact_preconditioner.operators(prob_a, lin_a, ws).W_b  # same set: kept
+    ops_b = contact_preconditioner.operators(prob_b, lin_b, ws)
     assert np.all(np.isin(lin_b.closed, ops_b.block))
     dofs = (3 * ops_b.block[:, None] + np.arange(3)).ravel()
     np.testing.assert_array_equal(ops_b.W_b, W[np.ix_(dofs, dofs)])
     x = np.random.default_rng(14).normal(size=len(lin_b.keys))
     J_b = dense_j(prob_b, lin_b)
-    np.testing.assert_allclose(contact_krylov._apply(ops_b, x), J_b @ x, atol=1e-12)
+    np.testing.assert_allclose(contact_preconditioner._apply(ops_b, x), J_b @ x, atol=1e-12)
 
 
 def test_w_block_is_dropped_when_w_changes_in_place():
@@ -373,15 +378,15 @@ def test_block_product_is_w_s_on_the_closed_dofs():
     prob, it, r = iterate(W, 19)
     lin = contact_newton.linearise(prob, it, r)
     ws = contact_krylov.Workspace()
-    contact_krylov._ensure_block(prob, lin.closed, ws)
+    contact_preconditioner.ensure_block(prob, lin.closed, ws)
     assert ws.W_block is not None  # a gathered block, not W itself
     x = lin.s.copy()
     outside = np.setdiff1d(np.arange(40), ws.block)
     x[outside[:4]] = 1.0  # points that just opened carry force outside the block
-    got = contact_krylov._block_product(prob, ws, x)
+    got = contact_preconditioner.block_product(prob, ws, x)
     np.testing.assert_allclose(lin.R @ got, lin.R @ (W @ x.ravel()), atol=1e-12)
     lin_block = contact_newton.linearise(
-        prob, it, r, w_times=lambda v: contact_krylov._block_product(prob, ws, v)
+        prob, it, r, w_times=lambda v: contact_preconditioner.block_product(prob, ws, v)
     )
     np.testing.assert_allclose(lin_block.b, lin.b, atol=1e-12)
 
@@ -399,7 +404,7 @@ def test_block_product_reads_the_rows_of_opened_points_in_place():
     prob, it, r = iterate(W, 22)
     lin = contact_newton.linearise(prob, it, r)
     ws = contact_krylov.Workspace()
-    contact_krylov._ensure_block(prob, lin.closed, ws)
+    contact_preconditioner.ensure_block(prob, lin.closed, ws)
     assert ws.W_block is not None
     x = lin.s.copy()
     outside = np.setdiff1d(np.arange(m), ws.block)
@@ -407,7 +412,7 @@ def test_block_product_reads_the_rows_of_opened_points_in_place():
     x[outside[::2]] = 1.0  # every other point outside: many runs of rows
     tracemalloc.start()
     try:
-        got = contact_krylov._block_product(prob, ws, x)
+        got = contact_preconditioner.block_product(prob, ws, x)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()

@@ -8,7 +8,7 @@ import scipy.linalg as sla
 
 from cad.errors import ParameterError
 from fe.contact import newton as contact_newton
-from fe.contact.dense import factor_jacobian, lu_threads_from_env
+from fe.contact.dense import LU_THREADED_MIN, factor_jacobian, lu_threads_from_env
 
 
 @pytest.mark.parametrize("raw", ["0", "-1", "two", ""])
@@ -30,7 +30,7 @@ def test_threaded_lu_solves_the_same_system(monkeypatch, threads):
     # above LU_THREADED_MIN the factorisation runs under a thread limit: the factor
     # must still solve J x = b (it factors Jᵀ; the Newton code solves with trans=1)
     monkeypatch.setattr(contact_newton, "LU_THREADS", threads)
-    n = contact_newton.LU_THREADED_MIN
+    n = LU_THREADED_MIN
     rng = np.random.default_rng(1)
     J = rng.standard_normal((n, n)) + n**0.5 * np.eye(n)
     b = rng.standard_normal(n)

@@ -7,6 +7,7 @@ import pytest
 from scipy.optimize import nnls
 
 from fe.contact import newton as contact_newton
+from fe.contact import residual as contact_residual
 from fe.contact import state as contact_state
 from fe.contact.law import ContactStatus
 from fe.contact.solve import solve_increment
@@ -137,7 +138,7 @@ def test_newton_step_equals_full_generalised_newton_direction():
     full = -np.linalg.solve(comp.jacobian, comp.residual.ravel())
     prob = contact_state.validate_problem(W, w_free, prev, None, None)._replace(mu=settings.mu)
     r = settings.r_scale / np.diagonal(W).reshape(m, 3).mean(axis=1)
-    it = contact_newton.evaluate(prob, p, np.zeros(0), r)
+    it = contact_residual.evaluate(prob, p, np.zeros(0), r)
     step = contact_newton.newton_step(prob, it, r, 0.0)
     assert step is not None
     np.testing.assert_allclose(step.dp.ravel(), full, atol=1e-10 * np.max(np.abs(full)))

@@ -71,7 +71,7 @@ def test_large_products_run_on_the_lu_threads_small_ones_on_the_callers():
 
 def test_products_give_the_same_numbers_on_two_threads():
     """A threaded product may sum in another order: equal to round-off, not bitwise."""
-    from fe.contact.newton import sparse_product
+    from fe.contact.residual import sparse_product
 
     rng = np.random.default_rng(3)
     n = 1200  # (3 n)² entries > PRODUCT_THREADED_MIN

@@ -189,7 +189,7 @@ def test_held_clevis_keeps_the_pin_centred_inside_a_contact_window(loose):
 
 def test_loop_files_of_a_sliding_cycle(slid, tmp_path):
     """The loop CSV with the free play is the grips' path; the figure is drawn on it."""
-    from fe.general.report import write_loop_csv, write_loop_png
+    from fe.cycle.loop_files import write_loop_csv, write_loop_png
 
     csv_path = write_loop_csv(slid.result, tmp_path / "loop.csv", with_free_play=True)
     rows = csv_path.read_text().splitlines()

@@ -1,4 +1,4 @@
-"""Contact geometry of the hinge: exact gaps, projections and the condensed operators."""
+"""The general hinge's system: compliance cache, low-memory mode and the condensed operators."""
 
 from __future__ import annotations
 
@@ -7,51 +7,9 @@ import pytest
 
 from cad.errors import ParameterError
 from cad.general import GeneralHingeParams, make_general_hinge
-from cad.surfaces import Cylinder
-from fe.general.geometry import closest_point, contact_geometry
+from fe.surfaces.geometry import contact_geometry
 from mesh.build import mesh_hinge
 from mesh.settings import MeshSettings
-
-
-@pytest.mark.parametrize("inside", [True, False], ids=["pin-surface", "hole-surface"])
-def test_closest_point_lies_on_the_surface(inside):
-    # defect: the foot on a hole was taken at x + g n (2g off the surface, inside the hole)
-    surface = Cylinder((0, 0, 0), (0, 0, 1), 4.2, material_inside=inside)
-    rng = np.random.default_rng(1)
-    x = np.column_stack(
-        [
-            rng.uniform(3.5, 4.0, 20) * np.cos(t := rng.uniform(0, 6.3, 20)),
-            rng.uniform(3.5, 4.0, 20) * np.sin(t),
-            rng.uniform(-1, 1, 20),
-        ]
-    )
-    foot = closest_point(surface, x)
-    assert np.allclose(surface.distance_outside(foot), 0.0, atol=1e-12)
-    assert np.allclose(foot[:, 2], x[:, 2])
-
-
-def test_gaps_are_exact_and_projections_land_on_the_master():
-    c = 0.2
-    mesh, _ = mesh_hinge(
-        make_general_hinge(GeneralHingeParams(clearance_mm=c)),
-        MeshSettings.coarse(),
-    )
-    geo = contact_geometry(mesh, {p.name: np.zeros(3) for p in mesh.pairs})
-    assert np.allclose(geo.g0, c, atol=1e-12)  # from the exact cylinders, not the facets
-    x = np.asarray(mesh.nodes)
-    master_point = np.einsum("ma,mai->mi", geo.master_weights, x[geo.master_nodes])
-    slave = x[geo.slave]
-    # the interpolated master point is on the chord under the slave: same angle, radius
-    # between the chord's sag and the hole radius
-    r = np.hypot(master_point[:, 0], master_point[:, 1])
-    assert np.all(r <= 4.2 + 1e-9)
-    assert np.all(r >= 4.2 * np.cos(np.pi / 8) - 1e-9)
-    angle = np.arctan2(master_point[:, 1], master_point[:, 0]) - np.arctan2(
-        slave[:, 1], slave[:, 0]
-    )
-    assert np.abs(np.angle(np.exp(1j * angle))).max() < 0.05
-    assert np.allclose(np.linalg.norm(geo.frame, axis=2), 1.0)
-    assert np.allclose(np.einsum("mi,mi->m", geo.frame[:, 0], geo.frame[:, 1]), 0.0, atol=1e-12)
 
 
 def test_compliance_cache_is_keyed_by_mesh_content(tmp_path):
@@ -116,7 +74,7 @@ def test_delassus_by_row_blocks_is_the_whole_matrix_formula_and_allocates_one_w(
     expression held about four W-sized arrays)."""
     import tracemalloc
 
-    import fe.general.system as hinge_system
+    import fe.general.condensation as condensation
 
     rng = np.random.default_rng(5)
     m, b_s, b_m = 400, 1100, 700
@@ -125,9 +83,9 @@ def test_delassus_by_row_blocks_is_the_whole_matrix_formula_and_allocates_one_w(
     S_s, S_m = A @ A.T, B @ B.T
     V = np.asarray(Cs @ (Cs @ S_s).T) + np.asarray(Cm @ (Cm @ S_m).T)
     expected = 0.5 * (V + V.T)
-    monkeypatch.setattr(hinge_system, "CONDENSE_ROWS", 50)  # 24 blocks, a ragged last one
+    monkeypatch.setattr(condensation, "CONDENSE_ROWS", 50)  # 24 blocks, a ragged last one
     tracemalloc.start()
-    W = hinge_system.delassus(Cs, S_s, Cm, S_m)
+    W = condensation.delassus(Cs, S_s, Cm, S_m)
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     np.testing.assert_array_equal(W, expected)
@@ -155,13 +113,14 @@ def test_condensation_by_pin_solves_is_the_compliance_condensation(
     compliance blocks to round-off, is exactly symmetric, and leaves no compliance block
     in the system (what lets a zero-clearance level 2 fit); the pin factor is released in
     low-memory mode."""
-    import fe.general.system as hinge_system
-    from fe.general.system import build_system, condense
+    import fe.general.condensation as condensation
+    from fe.general.condensation import condense
+    from fe.general.system import build_system
 
     mesh, geo, _ = coarse_zero_clearance
     reference = condense(build_system(mesh), geo).W
     monkeypatch.setenv("HINGELAB_CONDENSE", "solves")
-    monkeypatch.setattr(hinge_system, "BLOCK_RHS", 100)  # several blocks, a ragged last one
+    monkeypatch.setattr(condensation, "BLOCK_RHS", 100)  # several blocks, a ragged last one
     system = build_system(mesh)
     system.low_memory = True
     cond = condense(system, geo)
@@ -182,16 +141,16 @@ def test_condensation_takes_the_path_that_fits_or_refuses_before_allocating(
     ResourceError naming the sizes and both estimates before the first dense solve (a
     zero-clearance level 2 would otherwise be killed minutes later). HINGELAB_MEMORY_CHECK=0
     lets it run; kept compliances are not counted."""
-    import fe.general.system as hinge_system
+    import fe.general.memory as memory
     from cad.errors import ResourceError
-    from fe.general.system import (
+    from fe.general.condensation import condense
+    from fe.general.memory import (
         CondensePath,
-        build_system,
-        condense,
         condense_path,
         dense_memory_bytes,
         solves_memory_bytes,
     )
+    from fe.general.system import build_system
 
     mesh, geo, (b_s, b_m, n) = coarse_zero_clearance
     system = build_system(mesh)
@@ -199,18 +158,18 @@ def test_condensation_takes_the_path_that_fits_or_refuses_before_allocating(
     need, low = dense_memory_bytes(b_s, b_m, n), solves_memory_bytes(b_m, n)
     assert need >= 8 * (b_s**2 + b_m**2 + n**2)  # at least the blocks and W themselves
     assert 8 * n**2 <= low < need  # at zero clearance the slave block is W's size
-    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: low - 1)
+    monkeypatch.setattr(memory, "available_memory_bytes", lambda: low - 1)
     with pytest.raises(
         ResourceError,
         match=rf"{n}² entries.*or {low / 1e6:.1f} MB by pin solves.*{(low - 1) / 1e6:.1f} MB are",
     ):
         condense(system, geo)
     assert "compliance" not in system.timings_s  # refused before the first dense solve
-    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: need - 1)
+    monkeypatch.setattr(memory, "available_memory_bytes", lambda: need - 1)
     assert condense_path(system, *nodes) is CondensePath.SOLVES
-    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: need)
+    monkeypatch.setattr(memory, "available_memory_bytes", lambda: need)
     assert condense_path(system, *nodes) is CondensePath.COMPLIANCE
-    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: low - 1)
+    monkeypatch.setattr(memory, "available_memory_bytes", lambda: low - 1)
     monkeypatch.setenv("HINGELAB_MEMORY_CHECK", "0")
     assert condense_path(system, *nodes) is CondensePath.COMPLIANCE
     cond = condense(system, geo)
@@ -218,8 +177,8 @@ def test_condensation_takes_the_path_that_fits_or_refuses_before_allocating(
     monkeypatch.delenv("HINGELAB_MEMORY_CHECK")
     kept = dense_memory_bytes(b_s, b_m, n, compliance_kept=True)
     assert kept < need
-    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: kept)
+    monkeypatch.setattr(memory, "available_memory_bytes", lambda: kept)
     assert condense_path(system, *nodes) is CondensePath.COMPLIANCE  # blocks kept: W only
-    monkeypatch.setattr(hinge_system, "available_memory_bytes", lambda: min(kept, low) - 1)
+    monkeypatch.setattr(memory, "available_memory_bytes", lambda: min(kept, low) - 1)
     with pytest.raises(ResourceError):
         condense(system, geo)

@@ -28,7 +28,8 @@ import pytest
 
 from fe.interop.ccx import find_ccx, loop_figures, loop_from_dat, parse_dat, run_ccx
 from fe.interop.deck_settings import DeckSettings
-from fe.interop.inp import GRIP_REF_SET, write_deck
+from fe.interop.inp import write_deck
+from fe.interop.inp_names import GRIP_REF_SET
 from studies.cli.main import main
 
 pytestmark = pytest.mark.slow

@@ -34,14 +34,8 @@ from fe.interop.deck_settings import (
     ContactType,
     DeckSettings,
 )
-from fe.interop.inp import (
-    C3D8_FACES,
-    GRIP_REF_SET,
-    deck_text,
-    facet_element_faces,
-    inp_name,
-    write_deck,
-)
+from fe.interop.inp import C3D8_FACES, deck_text, facet_element_faces, write_deck
+from fe.interop.inp_names import GRIP_REF_SET, inp_name
 from tests.helpers import box_mesh, merge_meshes
 
 # -- an independent reader ------------------------------------------------------------

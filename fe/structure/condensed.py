@@ -1,8 +1,9 @@
-"""The one condensed system both builders return: contact operators of one configuration.
+"""The one condensed system every builder returns: contact operators of one configuration.
 
-``fe.general.system.condense`` (the hinge, from nodal compliances, with rigid amplitudes)
-and ``fe.general.twobody.condense`` (two elastic bodies, by block solves) both produce a
-``Condensed``; :mod:`fe.contact` solves on its ``W``, ``w0`` and ``G``.
+``fe.general.condensation.condense`` (the hinge, from nodal compliances, with rigid
+amplitudes), ``fe.structure.twobody.condense`` (two elastic bodies, by block solves) and the
+bearing hinge's builders produce a ``Condensed``; :mod:`fe.contact` solves on its ``W``,
+``w0`` and ``G``. ``BLOCK_RHS`` is the block size of the solves that form them.
 """
 
 from __future__ import annotations
@@ -13,9 +14,16 @@ import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
-from fe.general.geometry import ContactGeometry
+from fe.surfaces.geometry import ContactGeometry
 
 FloatArray = npt.NDArray[np.float64]
+
+BLOCK_RHS = 128
+"""Right-hand sides per block solve when condensing (see benchmarks/bench_assembly.py).
+
+Also the best for the general hinge's pin solves (``fe.general.condensation.pin_delassus``):
+level 1 at zero clearance (9 408 rows, one thread, a busy day), 32 / 64 / 128 / 256 / 512
+right-hand sides took 78 / 72–73 / 68–70 / 73 / 84–87 s, the same W to the bit."""
 
 
 @dataclass(frozen=True)

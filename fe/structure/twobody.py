@@ -50,15 +50,14 @@ import scipy.sparse as sp
 from cad.errors import MeshQualityError, ParameterError
 from fe.assembly import assemble_stiffness
 from fe.element import ElementType
-from fe.general.condensed import Condensed
-from fe.general.geometry import (
+from fe.linalg.sparse import Factorization
+from fe.structure.condensed import BLOCK_RHS, Condensed
+from fe.surfaces.geometry import (
     ContactGeometry,
     bilinear_weights,
     contact_operator,
     project_on_facets,
 )
-from fe.general.system import BLOCK_RHS
-from fe.linalg.sparse import Factorization
 from mesh.hexmesh import HexMesh
 
 logger = logging.getLogger(__name__)
