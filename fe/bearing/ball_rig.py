@@ -23,8 +23,9 @@ force and work of the half model is half the ball's.
 
 The condensed operators depend only on the bearing geometry, its material and the grid,
 never on the structure of the hinge: one build serves all balls of both bearings and
-every increment. Building at ``MESH_LEVELS[1]`` takes about a minute and a half (the
-condensation is 3m solves), so the result is kept on disk (:func:`load_or_build_rig`).
+every increment. Building it costs a factorisation and 3m solves for the condensation
+(build times: benchmarks/bench_bearing_full.txt), so the result is kept on disk
+(:func:`load_or_build_rig`).
 """
 
 from __future__ import annotations

@@ -107,9 +107,9 @@ class FitSystem(BallCounts):
         factor: Factorisation of ``K0 = Tᵀ K T + Btᵀ H_ref Bt`` on ``free``, kept for the
             field recovery (``displacement``). It exists during the build anyway, so
             keeping it adds no peak memory, but it stays alive with the system (as
-            ``BearingSystem.factor``): on the coarse mesh (120k DOF, PARDISO) it holds
-            ~380 MB resident (PARDISO reports 354 MB of numeric factor), growing with the
-            factor's fill on finer meshes; ``fields`` adds 8 n_dof floats (7.7 MB there).
+            ``BearingSystem.factor``): a few hundred MB resident on the coarse mesh,
+            growing with the factor's fill on finer meshes; ``fields`` adds 8 n_dof
+            floats (benchmarks/bench_bearing_cycle.txt, 'FitSystem').
         fields: Unit fields of the rigid amplitudes (pin modes, ring spin, grip) on all
             DOFs, shape (n_dof, N_RIGID) [mm per unit α], ``C`` of them is ``G``.
         timings_s: Wall times [s].

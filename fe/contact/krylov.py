@@ -64,18 +64,16 @@ class KrylovOptions:
             needs a relative linear residual of about ``tol / ρ`` to end below the
             Newton tolerance ``tol``, not ``ρ²``; the factor leaves room for the 2-norm
             of GMRES against the max-norm of ``ρ`` (``√n`` at most) and keeps the
-            equilibrium error, hence the energy balance, near round-off. Default hinge,
-            level 0, GMRES iterations per cycle with 0 / 1e-4 / 1e-2: 1 550 / 1 417 /
-            1 345 at Δr 0, 2 626 / 2 093 / 1 830 at Δr 0.1 mm, energy balance 1e-14 /
-            1e-14 / 6e-12 (0 solves every step to ``ρ²``).
+            equilibrium error, hence the energy balance, near round-off. 0 solves every
+            step to ``ρ²``; against it 1e-4 saves GMRES iterations and keeps the energy
+            balance at 1e-14, where 1e-2 raised it to 6e-12
+            (benchmarks/bench_contact_variants.txt, 'oversolve').
         kappa_change: A slipping point whose slip ratio ``κ`` moved by more than this
             counts as changed too: its row ``κ v·dw_t + (1-κ)/r b`` is rescaled and its
-            diagonal moved, which the base cannot know. Default hinge, level 0 / level 1,
-            Δr 0 with 1 (off) and 0.1: GMRES iterations 1 457 / 1 938 → 1 089 / 1 230,
-            refactorisations after slow solves (``refresh_iter``) 41 / 62 → 20 / 28,
-            contact phase at level 1 64.0–65.8 → 60.8–63.0 s (three alternating pairs),
-            level 0 4.11 → 3.69 s; level 1, Δr 0.1 mm 2 341 → 2 190 GMRES iterations, time
-            unchanged (4.1 s). 0.03 and 0.3 at level 0: within noise of 0.1.
+            diagonal moved, which the base cannot know. At Δr 0 it halves the
+            refactorisations after slow solves (``refresh_iter``) against 1 (off); 0.03
+            and 0.3 were within noise of 0.1 (benchmarks/bench_contact_variants.txt,
+            'kappa_change').
         min_size: Smaller systems are always factorised (dense LU is cheap there).
         single_min: Reduced systems of at least this many unknowns get a float32 LU as
             their base (half the time of float64; it is a preconditioner, the steps

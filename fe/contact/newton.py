@@ -305,9 +305,9 @@ def form_jacobian(
 
 
 LOCAL_MAX = 300
-"""Up to this many unknowns :func:`form_jacobian` applies ``R`` and ``T`` blockwise (on the
-hinge's reduced Jacobians the blocks took 0.07–0.3 ms where the sparse path took 0.1–0.5 ms
-below 250 unknowns, and 2–2.5× the sparse path's time from 400 up: measured per size)."""
+"""Up to this many unknowns :func:`form_jacobian` applies ``R`` and ``T`` blockwise: on the
+hinge's reduced Jacobians the blocks are faster than the sparse path below it and slower
+above. Chosen by measurement (benchmarks/bench_contact.txt, 'LOCAL_MAX')."""
 
 
 _CHUNK = 256

@@ -79,8 +79,8 @@ def block_product(
     outside = np.flatnonzero(outside & np.any(x != 0.0, axis=1))
     if len(outside):
         # Their rows of the symmetric W, read in place: where the contact zone changes
-        # sides thousands of points open at once, and copying their rows had put 0.37 W
-        # on the contact phase's peak (level 1, Δr 0: 1.11 W -> 0.74 W without the copy).
+        # sides thousands of points open at once, and copying their rows raised the
+        # contact phase's memory peak (benchmarks/bench_cycle.txt, 'block_product').
         x_out = np.zeros_like(x)
         x_out[outside] = x[outside]
         out[dofs] += sparse_product(prob.W, x_out, threads=threads)[dofs]

@@ -147,8 +147,9 @@ def sparse_product(
     """Return ``W x`` from the rows (symmetric ``W``) of the points where ``x ≠ 0``.
 
     The rows are read in runs of consecutive points, as slices (views): gathering them
-    with an index array copied them first, which at 9 400 rows and half of them nonzero
-    took ten times as long as the full product (0.5 s against 0.05 s); the runs take half.
+    with an index array copies them first, which on a large ``W`` with half of them
+    nonzero costs more than the full product, where the runs cost less. Timings:
+    benchmarks/bench_contact_profile.txt, 'sparse_product'.
 
     Args:
         W: Matrix, shape (3m, 3m), float64.
@@ -180,8 +181,8 @@ def sparse_product(
 
 PLAIN_PRODUCT_MAX = 600
 """Up to this many rows :func:`sparse_product` takes the plain product: finding the runs
-cost more than reading W (279 rows, half the points loaded: 0.022 ms by runs, 0.008 ms
-plain; at 1 053 rows and a third loaded the runs win, 0.13 against 0.16 ms)."""
+costs more than reading W there. Chosen by measurement (benchmarks/bench_contact.txt,
+'PLAIN_PRODUCT_MAX')."""
 
 
 def _amax(a: FloatArray) -> float:

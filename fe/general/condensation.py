@@ -34,9 +34,9 @@ def delassus(
     """``W = ½ (V + Vᵀ)`` with ``V = C_s S_slave C_sᵀ + C_m S_master C_mᵀ``, by blocks of rows.
 
     Only ``W`` and blocks of ``CONDENSE_ROWS`` rows are allocated: the whole-matrix
-    expression held three more arrays of W's size (level 1 at zero clearance: 2.2 GB
-    traced against 0.84 GB, 6.6 s against 5.1 s, the same numbers bit for bit), which is
-    what a zero-clearance level 2 (a 36 000² W) cannot afford.
+    expression held three more arrays of W's size, which is what a zero-clearance level 2
+    (a 36 000² W) cannot afford; the result is the same bit for bit. Measured:
+    benchmarks/bench_cycle.txt, 'delassus'.
 
     Args:
         Cs: Contact operator's columns at the slave nodes' DOFs, shape (3m, b_s).

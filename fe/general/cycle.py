@@ -214,17 +214,15 @@ HINGE_SINGLE_MIN = 256
 
 Its reduced Jacobians are well conditioned (W is a compliance; measured: GMRES on the exact
 system converges on a fresh float32 base in 2-3 iterations), so the halved LU time pays
-from a few hundred unknowns (level 0: LU time 2.5 → 1.5 s per cycle)."""
+from a few hundred unknowns. Chosen by measurement (benchmarks/bench_cycle.txt,
+'HINGE_SINGLE_MIN')."""
 
 
 HINGE_KRYLOV_MIN = 500
 """Reduced systems of fewer unknowns are factorised at every Newton step, not updated from a
 kept base (``KrylovOptions.min_size``): there the update and GMRES cost more Python and
-numpy calls than an LU of a few milliseconds. Contact phase with 0 / 300 / 600 / 1 000,
-single runs: level 0, Δr 0.1 mm (a few hundred unknowns) 1.13 / 0.99 / 0.96 / 0.94 s;
-level 1, Δr 0.1 4.95 / – / 4.69 / 4.72 s; level 0, Δr 0 (about 1 100) 4.47 / – / 4.67 /
-4.85 s. Best of four alternating runs, 0 against 500: level 0, Δr 0.1 1.08 / 0.95 s;
-level 0, Δr 0 4.75 / 4.76 s (the single runs' spread there was noise)."""
+numpy calls than an LU of a few milliseconds. Chosen by measurement
+(benchmarks/bench_cycle.txt, 'HINGE_KRYLOV_MIN')."""
 
 
 def hinge_contact(settings: CycleSettings) -> ContactSettings:

@@ -50,13 +50,9 @@ CONTACT_PHASE_W = 1.0
 """Peak memory the contact phase adds to a zero-clearance cycle, in units of ``W``'s size.
 
 The closed points' block of ``W`` or the working set's (one of them at a time), its
-float32 copy, the float32 base LU and the next one. Measured (resident-set peak over the
-phase above its start, ``/proc/self/status`` VmHWM reset before it): level 0 0.87 W (fixed
-costs dominate a 0.05 GB ``W``), level 1 0.74 W (0.71 GB ``W``), level 2 about 0.5 W (a
-10.2 GB ``W`` condensed by pin solves: 13.6 → 18.6 GB, sampled every 20 s). Before the
-contact caches kept only one set of blocks (fe.contact.working) it was 1.52 W at level 1,
-and level 2 was killed by the out-of-memory killer at 24.3 GB in increment 43 of 50
-(with 0.6 W, the estimate then, it had been let through)."""
+float32 copy, the float32 base LU and the next one. The value lies above the resident-set
+peaks measured over the phase at levels 0–2 (benchmarks/bench_cycle.txt, 'CONTACT_PHASE_W'):
+an estimate below the true peak lets through a cycle that the out-of-memory killer then ends."""
 
 
 def dense_memory_bytes(b_s: int, b_m: int, n: int, *, compliance_kept: bool = False) -> int:

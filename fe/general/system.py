@@ -76,12 +76,10 @@ RECOVER_BLOCK = 32
 LOW_MEMORY_DOF = 400_000
 """Above this many DOF, ``build_system`` holds one part's sparse factor at a time.
 
-At refinement 2 with the pin's former O-grid (1.07 M DOF) the lug (449k DOF) and pin
-(615k DOF) factors together with the dense contact operators exceeded 24 GB; one at a time
-they fit. With the pin's band (``MeshSettings.pin_band_sizes``) level 2 has 0.73 M DOF, the
-pin 0.28 M. The price is a
-refactorisation per displacement recovery, so recover many states at once
-(``displacements``)."""
+On a mesh of about a million DOF (refinement 2 before the pin's band) both parts' factors
+together with the dense contact operators did not fit in memory; one at a time they did
+(benchmarks/bench_cycle.txt, 'LOW_MEMORY_DOF'). The price is a refactorisation per
+displacement recovery, so recover many states at once (``displacements``)."""
 
 
 def outside_gaps(cond: Condensed, u: FloatArray) -> FloatArray:
@@ -149,8 +147,9 @@ class HingeSystem:
         """Return a factorisation, made on first use (its time adds to ``timings_s``).
 
         The condensation needs none (Schur complements, each released after use), so no
-        sparse factor is alive while condensing: at refinement 2 with the pin's former O-grid
-        (1.07 M DOF) holding both factors during the Schur complements exceeded 24 GB.
+        sparse factor is alive while condensing: at refinement 2 (before the pin's band),
+        holding both factors during the Schur complements did not fit in memory
+        (benchmarks/bench_cycle.txt, 'HingeSystem._factor').
         """
         if name not in self._factors:
             t0 = time.perf_counter()

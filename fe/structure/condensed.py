@@ -21,9 +21,9 @@ FloatArray = npt.NDArray[np.float64]
 BLOCK_RHS = 128
 """Right-hand sides per block solve when condensing (see benchmarks/bench_assembly.py).
 
-Also the best for the general hinge's pin solves (``fe.general.condensation.pin_delassus``):
-level 1 at zero clearance (9 408 rows, one thread, a busy day), 32 / 64 / 128 / 256 / 512
-right-hand sides took 78 / 72–73 / 68–70 / 73 / 84–87 s, the same W to the bit."""
+Also the best of 32 to 512 for the general hinge's pin solves
+(``fe.general.condensation.pin_delassus``), with the same W to the bit
+(benchmarks/bench_assembly.txt, 'BLOCK_RHS')."""
 
 
 @dataclass(frozen=True)
