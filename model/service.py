@@ -3,7 +3,7 @@
 Every command that runs the model (``cycle``, ``sweep``, ``compare``, ``synth``,
 ``diagnose``, ``calibrate``, the paper validation) goes through ``ModelService``:
 
-* each geometry (hinge parameters + mesh settings, i.e. one clearance) is built, meshed,
+* each geometry (the kind's structure, ``HingeKind.structure``, + mesh settings) is built, meshed,
   assembled, factorised and condensed once (``prepare``; the nodal compliances are kept
   on disk by the mesh's content hash when ``cache_dir`` is given) and reused for every
   amplitude, μ and effect run on it;
@@ -233,7 +233,7 @@ class ModelService:
         on_result: Callable[[PointRun], None] | None = None,
         keep_going: bool = True,
     ) -> list[PointRun]:
-        """Run every distinct point, one geometry (clearance) at a time.
+        """Run every distinct point, one geometry at a time.
 
         Args:
             spec: The model.
@@ -243,7 +243,7 @@ class ModelService:
             keep_going: Record a failing point and go on (else re-raise its error).
 
         Returns:
-            One ``PointRun`` per distinct point, grouped by clearance in first-seen order.
+            One ``PointRun`` per distinct point, grouped by geometry in first-seen order.
         """
         check_spec(spec)
         spec = resolve_structural(spec)

@@ -1,7 +1,8 @@
-"""Design sweeps: every (clearance, amplitude) point of a grid, traced, resumable, on Dask.
+"""Design sweeps: every (design value, amplitude) point of a grid, traced, resumable, on Dask.
 
-Points run through the model service (``model.service``): each clearance is meshed,
-factorised and condensed once and every amplitude runs on it; each point's result is
+Points run through the model service (``model.service``): each geometry (a clearance of
+the general hinge; one for every preload of the bearing hinge) is meshed, factorised and
+condensed once and every amplitude runs on it; each point's result is
 stored by its content key (``results/``) the moment it finishes and recorded in the
 trace right after, by the driver, one point at a time. So an interrupted sweep keeps
 every finished point, and a rerun of the same command computes only what is missing;
@@ -11,15 +12,16 @@ run once. A point that fails is recorded with its error (and its partial loop wh
 solver gave one) and the sweep goes on.
 
 With ``workers > 1`` the points run on a Dask ``LocalCluster`` of worker processes, all
-points of one clearance on the same worker (one preparation per clearance). With a
+points of one geometry on the same worker (one preparation per geometry). With a
 ``scheduler`` address they run on that existing Dask cluster instead: the workers need
 only the installed package; each point's cycle comes back to this process, which stores
 it, writes its files and records it (the geometry files stay with the workers).
 
-A sweep is a clearance (or preload) × amplitude grid, or any list of (clearance or preload,
-amplitude) points by the hinge kind (``points_mm_n``: a Latin hypercube or central
-composite design of a study file, ``studies.study_file``), on the default general or
-bearing hinge or on any ``ModelSpec`` (``model``). ``plan_sweep`` says, without
+A sweep is a grid of the hinge kind's design variable (``fe.kinds.DesignVariable``: the
+general hinge's clearance, the bearing hinge's preload, a plug-in kind's own) × amplitude,
+or any list of (design value, amplitude) points (``points``: a Latin hypercube or central
+composite design of a study file, ``studies.study_file``), on the default hinge of a
+registered kind or on any ``ModelSpec`` (``model``). ``plan_sweep`` says, without
 meshing anything, which points are done, stored, failed before, or still to run.
 
 Layout of ``out``::
@@ -27,7 +29,8 @@ Layout of ``out``::
     trace.sqlite                    the trace (rsm.trace schema); solver_json holds the result key
     table.csv                       one row per ok point of this run: point_id, parameters, results
     results/KEY.npz                 each computed cycle, by result key (safe to delete: recomputed)
-    geometry/c0.100/                hinge.step, mesh.msh, mesh.vtu, mesh.png
+    geometry/c0.100/                hinge.step, mesh.msh, mesh.vtu, mesh.png (``base`` for a kind
+                                    whose design variable does not change the mesh)
     cache/                          nodal compliances by mesh content hash (safe to delete)
     points/c0.100_F300/             loop.csv, loop.png, result.json
 """

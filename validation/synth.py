@@ -36,7 +36,7 @@ from fe.cycle.result import CycleResult
 from fe.kinds import DEFAULT_KIND, hinge_kind
 from mesh.settings import MeshSettings
 from model.jsonio import dumps
-from model.spec import DesignPoint, ModelSpec, hinge_at
+from model.spec import DesignPoint, ModelSpec, hinge_at, resolve_structural
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -394,7 +394,8 @@ def _data_run(
 
 def _n_contact_points(spec: Any, prepared: Any, result: Any, case: SynthCase) -> int:
     """Contact points of a prepared geometry, as the kind's cycle summary counts them."""
-    params = hinge_at(spec, DesignPoint(case.amplitude_n, dict(case.values)))
+    # the parameters the cycle really ran (interface_friction: the fits are contacts)
+    params = hinge_at(resolve_structural(spec), DesignPoint(case.amplitude_n, dict(case.values)))
     return int(spec.hinge_kind.summary(prepared.built, params, result).get("n_contact_pairs", 0))
 
 

@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``hingelab cycle``."""
     from fe.cycle.loop_files import write_loop_csv, write_loop_png
     from model.service import ModelService
-    from model.spec import DesignPoint, describe_point, hinge_at
+    from model.spec import DesignPoint, describe_point, hinge_at, resolve_structural
 
     t0 = time.perf_counter()
     if args.frames < 0:
@@ -120,7 +120,8 @@ def run(args: argparse.Namespace) -> int:
         if pvd is not None:
             files["pvd"] = str(pvd)
     summary = _summary(result, meshed, files)
-    own = kind.summary(prepared.built, hinge_at(spec, point), result)
+    # the parameters the cycle really ran (interface_friction: the fits are contacts)
+    own = kind.summary(prepared.built, hinge_at(resolve_structural(spec), point), result)
     timings = {**summary.pop("timings_s"), **own.pop("timings_s", {}), **result.timings_s}
     summary |= own | {"timings_s": timings, "wall_s": time.perf_counter() - t0}
     (args.out / "result.json").write_text(dumps(summary))
