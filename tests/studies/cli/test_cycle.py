@@ -260,3 +260,38 @@ def test_cycle_model_file_with_an_effect(tmp_path, capsys):
     )
     assert out[1]["W_cycle_Nmm"] == pytest.approx(out[0]["W_cycle_Nmm"], rel=1e-6)
     assert out[1]["eta"] < out[0]["eta"]
+
+
+@pytest.mark.slow  # 24 s: a frictional-fit cycle of the coarse bearing hinge
+def test_cycle_summary_of_the_structure_interface_friction_makes(tmp_path):
+    """interface_friction turns the bonded fits into contacts: the summary is the fits' one."""
+    import json
+    from pathlib import Path
+
+    example = Path(__file__).parents[3] / "studies" / "examples" / "MODEL_bearing.toml"
+    text = example.read_text().replace(
+        "[cycle]", "[effects.interface_friction]\nmu_interface = 0.2\n\n[cycle]"
+    )
+    model = tmp_path / "MODEL.toml"
+    model.write_text(text)
+    out = tmp_path / "out"
+    assert (
+        main(
+            [
+                "cycle",
+                "--model",
+                str(model),
+                "--increments",
+                "8",
+                "--frames",
+                "0",
+                "--out",
+                str(out),
+                "--json",
+            ]
+        )
+        == 0
+    )
+    summary = json.loads((out / "result.json").read_text())
+    assert summary["interfaces"] == "contact"
+    assert summary["W_cycle_Nmm"] > 0  # the fits dissipate
