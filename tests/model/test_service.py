@@ -175,5 +175,7 @@ def test_a_loop_effect_applies_to_the_bearing_hinge_and_a_contact_effect_is_refu
     assert d1 - d0 == pytest.approx(2e-5 * 300.0, rel=1e-9)
     assert all(np.isnan(i.stiffness_n_per_mm) for i in framed.increments)  # δ changed
     contact = dataclasses.replace(spec, effects={"face_friction": {"clamp_force_n": 100.0}})
-    with pytest.raises(ParameterError, match=r"\['face_friction'\] act on the general hinge"):
+    with pytest.raises(
+        ParameterError, match=r"\['face_friction'\] do not act on the bearing hinge"
+    ):
         ModelService().run(contact, [point])
