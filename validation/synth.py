@@ -396,7 +396,7 @@ def _n_contact_points(spec: Any, prepared: Any, result: Any, case: SynthCase) ->
     """Contact points of a prepared geometry, as the kind's cycle summary counts them."""
     # the parameters the cycle really ran (interface_friction: the fits are contacts)
     params = hinge_at(resolve_structural(spec), DesignPoint(case.amplitude_n, dict(case.values)))
-    return int(spec.hinge_kind.summary(prepared.built, params, result).get("n_contact_pairs", 0))
+    return int(spec.hinge_kind.summary(prepared.built, params, result).get("n_contact_points", 0))
 
 
 def _synthesize(

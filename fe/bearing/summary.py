@@ -42,6 +42,7 @@ def bearing_summary(result: CycleResult, system: Any, params: Any) -> dict[str, 
     out = {
         **model_choices(system, params),
         **model_size(system, result),
+        "n_contact_points": 2 * system.n_balls,  # each ball's inner and outer contact
         "ball_hertz_constant_N_per_mm1.5": system.balls.k_n,
         "preload_step": {
             "plate_travel_mm": float(pre.alpha[2]),
@@ -81,7 +82,7 @@ def fit_summary(result: CycleResult, system: Any, params: Any) -> dict[str, Any]
         "balls": fit_ball_table(system, result),
         **model_choices(system, params),
         **model_size(system, result),
-        "n_contact_points": system.n_points,
+        "n_contact_points": system.n_points + 2 * system.n_balls,  # fits, and each ball's two
         "preload_step": {
             "dissipation_Nmm": 0.0,
             "note": "assembled frictionlessly: the fits' friction history starts after it",

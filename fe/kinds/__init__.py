@@ -247,8 +247,8 @@ def _load(name: str, value: str) -> HingeKind:
 
 
 def kind_names() -> tuple[str, ...]:
-    """The names of every kind that can be loaded, registered ones first."""
-    return tuple(dict.fromkeys([*_REGISTERED, *_entry_points()]))
+    """The names of every kind that can be loaded or is registered, in alphabetical order."""
+    return tuple(sorted({*_REGISTERED, *_entry_points()}))
 
 
 def hinge_kind(kind: str | HingeKind) -> HingeKind:

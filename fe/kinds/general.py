@@ -121,6 +121,9 @@ class GeneralHinge:
             "n_contact_pairs": len(result.configs[1].geo.slave)
             if result.configs
             else len(result.states[-1].p),
+            "n_contact_points": len(result.configs[1].geo.slave)
+            if result.configs
+            else len(result.states[-1].p),
             "n_surface_pairs": len(system.mesh.pairs),
             "timings_s": dict(system.timings_s),
         }

@@ -370,7 +370,7 @@ def test_eta_only_cases_cannot_tell_a_series_spring_from_shear_compliance(spec, 
     rows = ["clearance_mm,amplitude_N,eta"]
     for case in read_measurement_set(loops).cases:
         m = process_loop(case.loop.force_n, case.loop.displacement_mm, case.case_id).metrics
-        rows.append(f"{case.clearance_mm:g},{case.amplitude_n:g},{m.eta:.6g}")
+        rows.append(f"{case.values['clearance_mm']:g},{case.amplitude_n:g},{m.eta:.6g}")
     (tmp_path / "eta.csv").write_text("\n".join(rows) + "\n")
     d = diagnose(spec, read_eta_table(tmp_path / "eta.csv"), FAST)
     assert d.verdict == "indistinguishable", d.text()

@@ -77,7 +77,7 @@ def test_bearing_set_from_a_finer_mesh_with_a_hidden_frame(tmp_path, capsys):
     assert all(c["n_contact_points"] == 40 for c in manifest["cases"])  # 2 per ball
     assert manifest["synth_mesh"]["contact_size_mm"] < manifest["model_mesh"]["contact_size_mm"]
     data = read_measurement_set(out)
-    assert [(c.hinge, c.preload_n, c.amplitude_n) for c in data.cases] == [
+    assert [(c.hinge, c.values["preload_n"], c.amplitude_n) for c in data.cases] == [
         ("bearing", 0.0, 300.0),
         ("bearing", 200.0, 150.0),
     ]
