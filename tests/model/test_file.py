@@ -153,7 +153,7 @@ def write(tmp_path, text):
         (
             '[hinge]\nkind = "hinged"\n',
             ParameterError,
-            r"kind must be one of \['general', 'bearing'\], got 'hinged'",
+            r"kind must be one of \['bearing', 'general'\], got 'hinged'",
         ),
         (
             '[hinge]\nkind = "bearing"\narrangement = "SIDEWAYS"\n',
