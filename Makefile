@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out/demo
 
-.PHONY: demo test test-all lint bench clean crosscheck
+.PHONY: demo test test-all lint bench clean crosscheck peers
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -31,10 +31,14 @@ lint: $(STAMP)
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do $(BIN)/python $$b; done
 
-# Our loops against CalculiX on the same mesh (docs/calculix_crosscheck.md); installs ccx if missing.
-crosscheck: $(STAMP)
-	@command -v ccx >/dev/null || { echo "ccx missing: installing CalculiX with apt-get (needs root)"; \
-		apt-get update && apt-get install -y calculix-ccx; }
+# The peers some slow tests check against: CalculiX (ccx) and headless chromium (Debian packages,
+# needs root). Tests never install anything; without these they skip and name this target.
+peers:
+	@if command -v ccx >/dev/null && command -v chromium >/dev/null; then echo "ccx and chromium present"; \
+	else DEBIAN_FRONTEND=noninteractive apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y calculix-ccx chromium; fi
+
+# Our loops against CalculiX on the same mesh (docs/calculix_crosscheck.md).
+crosscheck: $(STAMP) peers
 	$(BIN)/python -m pytest -q -m "slow or not slow" tests/fe/interop/test_inp.py tests/fe/interop/test_ccx_crosscheck.py
 
 clean:

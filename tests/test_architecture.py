@@ -125,3 +125,23 @@ def _resolves(dotted: str) -> bool:
             obj = getattr(obj, attr)
         return True
     return False
+
+
+INSTALL_COMMAND = re.compile(r"""["'](?:apt-get|apt|pip|dpkg)["']\s*,\s*["'](?:install|update|-i)["']""")
+"""A subprocess argument list that installs packages, e.g. ``["apt-get", "install", ...]``."""
+
+
+def test_no_test_installs_packages() -> None:
+    """Installs belong in `make peers`, not in tests: a test skips with the command instead."""
+    offenders = [
+        str(p.relative_to(ROOT))
+        for p in (ROOT / "tests").rglob("*.py")
+        if p.name != "test_architecture.py" and INSTALL_COMMAND.search(p.read_text(encoding="utf-8"))
+    ]
+    assert not offenders, f"tests that install packages: {offenders}"
+
+
+def test_install_pattern_catches_an_install() -> None:
+    assert INSTALL_COMMAND.search('subprocess.run(["apt-get", "install", "-y", "chromium"])')
+    assert INSTALL_COMMAND.search("cmd = ['pip', 'install', 'x']")
+    assert not INSTALL_COMMAND.search('pytest.skip("run `make peers` to install it")')

@@ -343,7 +343,7 @@ def test_colliding_labels_are_refused():
 def test_ccx_bar_matches_closed_form(tmp_path):
     """A 4 × 1 × 1 mm bar (ν = 0, so the clamped ends do not matter): δ = F L / (E A)."""
     if find_ccx() is None:
-        pytest.skip("CalculiX (ccx) is not installed: apt-get install calculix-ccx")
+        pytest.skip("CalculiX (ccx) is not installed: run `make peers` (needs root) to install it")
     E, F, L = 70_000.0, 100.0, 4.0
     m = box_mesh(L, 1.0, 1.0, 4, 1, 1, material=Material("nu0", E, 0.0))
     deck = write_deck(m, grip_faces(L), DeckSettings(amplitude_n=F, mu=0.0), tmp_path / "bar.inp")
