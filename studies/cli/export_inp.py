@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from cad.errors import ParameterError
 from model.jsonio import dumps
+
+if TYPE_CHECKING:
+    from mesh.settings import MeshSettings
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -41,11 +46,19 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )
     p.add_argument(
         "--contact",
-        choices=("node", "surface", "mortar"),
-        default="node",
-        help="CalculiX contact: node-to-surface (default), surface-to-surface, or mortar with "
-        "hard contact and exact stick (our solver's counterpart; no ADJUST, so mesh pin and "
-        "holes conformingly: docs/calculix_crosscheck.md)",
+        choices=("mortar", "node", "surface"),
+        default="mortar",
+        help="CalculiX contact: mortar with hard contact and exact stick (default: our "
+        "solver's counterpart, completes in ccx on the conforming mesh), node-to-surface or "
+        "surface-to-surface penalty contact (docs/calculix_crosscheck.md)",
+    )
+    p.add_argument(
+        "--mesh",
+        choices=("conforming", "model"),
+        default="conforming",
+        help="conforming (default): the model file's mesh sizes with pin and hole nodes at "
+        "the same angles (slave_ratio 1, arc_grading 1), which mortar contact needs without "
+        "ADJUST; model: the model file's own [mesh] as it is",
     )
     p.add_argument(
         "--penalty",
@@ -115,7 +128,10 @@ def run(args: argparse.Namespace) -> int:
         )
         base = DeckSettings(contact=kind, **common)  # type: ignore[arg-type]
     settings = dataclasses.replace(base, **overrides)
-    mesh, _ = mesh_hinge(model, spec.mesh)
+    mesh_settings = spec.mesh
+    if args.mesh == "conforming":
+        mesh_settings = dataclasses.replace(spec.mesh, **CONFORMING)
+    mesh, _ = mesh_hinge(model, mesh_settings)
     title = f"hingelab {spec.kind} hinge from {args.model.name}"
     path = write_deck(mesh, model.faces, settings, args.out, title=title)
     summary = {
@@ -129,8 +145,12 @@ def run(args: argparse.Namespace) -> int:
         "mu": settings.mu,
         "clearance_mm": settings.clearance_mm,
         "contact": settings.contact.value,
+        "mesh": args.mesh,
         "effects_not_exported": sorted(spec.effects),
     }
+    caution = deck_caution(args.contact, mesh_settings)
+    if caution:
+        summary["caution"] = caution
     if args.json:
         print(dumps(summary))
     else:
@@ -140,4 +160,30 @@ def run(args: argparse.Namespace) -> int:
         )
         if spec.effects:
             print(f"note: effects {sorted(spec.effects)} are not in the deck")
+        if caution:
+            print(f"caution: {caution}", file=sys.stderr)
     return 0
+
+
+CONFORMING: dict[str, float] = {"slave_ratio": 1.0, "arc_grading": 1.0}
+"""The ``MeshSettings`` overrides of ``--mesh conforming``: 16 equal facets around pin and holes
+at the coarse size, every pin node at a hole node's angle (docs/calculix_crosscheck.md)."""
+
+
+def deck_caution(contact: str, mesh: MeshSettings) -> str | None:
+    """Why CalculiX may not finish this deck, with the options that make one it finishes."""
+    conforming = all(getattr(mesh, k) == v for k, v in CONFORMING.items())
+    if contact == "mortar" and not conforming:
+        return (
+            "mortar contact without ADJUST needs pin and hole nodes at the same angles; on this "
+            "mesh (slave_ratio "
+            f"{mesh.slave_ratio:g}, arc_grading {mesh.arc_grading:g}) ccx starts overclosed: "
+            "use --mesh conforming (the default)"
+        )
+    if contact != "mortar":
+        return (
+            f"--contact {contact} is penalty contact: on the coarse mesh ccx ran over 20 min "
+            "without finishing the frictional cycle; --contact mortar --mesh conforming (the "
+            "defaults) completes"
+        )
+    return None

@@ -27,7 +27,7 @@ def model_file(tmp_path):
 
 def test_deck_from_model_file_with_overrides(tmp_path, capsys, model_file):
     out = tmp_path / "deck" / "model.inp"
-    argv = ["export-inp", str(model_file), "--out", str(out), "--json"]
+    argv = ["export-inp", str(model_file), "--out", str(out), "--json", "--contact", "node"]
     assert main([*argv, "--amplitude", "300", "--clearance", "0.1", "--mu", "0.3"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["amplitude_N"] == 300.0
@@ -53,20 +53,39 @@ def test_model_file_values_are_the_defaults(tmp_path, capsys, model_file):
     assert "*FRICTION\n0.15, " in text
 
 
-def test_mortar_deck_is_the_exact_counterpart(tmp_path, capsys, model_file):
-    """``--contact mortar`` writes DeckSettings.exact_mortar: mortar pairs, hard contact
-    (no *SURFACE BEHAVIOR), no ADJUST; the node default keeps its penalty cards."""
+def test_default_deck_is_mortar_on_the_conforming_mesh(tmp_path, capsys, model_file):
+    """The default is the deck ccx completes (issue 33, item 9): DeckSettings.exact_mortar —
+    mortar pairs, hard contact (no *SURFACE BEHAVIOR), no ADJUST — on the model's mesh sizes
+    with pin and hole nodes at the same angles; no caution is printed."""
     out = tmp_path / "mortar.inp"
-    argv = ["export-inp", str(model_file), "--out", str(out), "--json", "--contact", "mortar"]
-    assert main(argv) == 0
-    assert json.loads(capsys.readouterr().out)["contact"] == "MORTAR"
+    assert main(["export-inp", str(model_file), "--out", str(out), "--json"]) == 0
+    cap = capsys.readouterr()
+    summary = json.loads(cap.out)
+    assert (summary["contact"], summary["mesh"]) == ("MORTAR", "conforming")
+    assert "caution" not in summary
+    assert cap.err == ""
     text = out.read_text()
     assert text.count("TYPE=MORTAR") == 3
     assert "\n*SURFACE BEHAVIOR" not in text
     assert "ADJUST=" not in text
+    # the model's own (graded) mesh is another mesh: more elements around the load line
+    model = tmp_path / "model.inp"
+    assert main(["export-inp", str(model_file), "--out", str(model), "--json", "--mesh", "model"]) == 0
+    own = json.loads(capsys.readouterr().out)
+    assert own["n_nodes"] != summary["n_nodes"]
+    assert "--mesh conforming" in own["caution"]
+
+
+def test_penalty_contact_is_written_with_a_caution(tmp_path, capsys, model_file):
+    """Node-to-surface keeps its penalty cards, and says on stderr that ccx may not finish it
+    and which options make a deck that completes."""
     node = tmp_path / "node.inp"
-    assert main(["export-inp", str(model_file), "--out", str(node)]) == 0
+    assert main(["export-inp", str(model_file), "--out", str(node), "--contact", "node"]) == 0
+    err = capsys.readouterr().err
     assert "\n*SURFACE BEHAVIOR" in node.read_text()
+    assert err.startswith("caution: --contact node is penalty contact")
+    assert "--contact mortar --mesh conforming" in err
+    assert err.count("\n") == 1
 
 
 @pytest.mark.parametrize(
