@@ -42,7 +42,12 @@ from fe.kinds import hinge_kind
 from validation.loop_files import Loop
 from validation.loops import remove_offsets
 from validation.measurements import MeasurementSet, design_columns, read_measurement_set
-from validation.rig_cycles import CycleSplit, cycle_energies, split_cycles
+from validation.rig_cycles import (
+    CycleSplit,
+    cycle_energies,
+    process_displacement_cycle,
+    split_cycles,
+)
 from validation.rig_mapping import CONDITION_PREFIX, Control, RigMapping
 from validation.rig_records import RigRecord, read_record
 
@@ -174,6 +179,8 @@ def _import_one(
     for k in np.flatnonzero(split.steady):
         i, j = split.bounds[k]
         cid = f"{stem}_c{k + 1}"
+        where = f"{record.path}: cycle {k + 1} (rows {i + 1}–{j + 1})"
+        process_displacement_cycle(F[i : j + 1], d[i : j + 1], where)  # refused here, not on read
         _write_loop(loops / f"{cid}.csv", record.time_s[i : j + 1], F[i : j + 1], d[i : j + 1])
         rows.append(
             {"case_id": cid, "loop_file": f"loops/{cid}.csv", "replicate": int(k + 1), **columns}
