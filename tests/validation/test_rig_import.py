@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cad.errors import DataError
 from studies.cli.main import main
@@ -338,3 +340,46 @@ def test_cli_imports_and_prints_the_yardstick(
         == 1
     )
     assert "nope.json: no such record file or folder" in capsys.readouterr().err
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    amp_mm=st.floats(1e-3, 1e3),
+    n_steady=st.integers(2, 6),
+    noise=st.floats(0.0, 0.004),
+    seed=st.integers(0, 2**16),
+)
+def test_any_amplitude_and_noise_keep_exactly_the_plateau_cycles(
+    amp_mm: float, n_steady: int, noise: float, seed: int
+) -> None:
+    _, x, _ = synthetic(amp_mm=amp_mm, n_steady=n_steady, noise=noise, seed=seed)
+    split = split_cycles(x, 0.02, "synthetic")
+    assert split.n_steady == n_steady
+    assert split.steady_peak_to_peak_mm == pytest.approx(2 * amp_mm, rel=0.01 + 4 * noise)
+
+
+def test_a_force_controlled_record_is_one_case_with_its_stated_amplitude(tmp_path: Path) -> None:
+    n = 40
+    force = np.concatenate(
+        [
+            np.linspace(0, 300, n),
+            np.linspace(300, -300, 2 * n)[1:],
+            np.linspace(-300, 300, 2 * n)[1:],
+        ]
+    )
+    disp = force / 1e4 + np.concatenate(
+        [np.zeros(n), np.full(2 * n - 1, 0.002), np.full(2 * n - 1, -0.002)]
+    )
+    t = np.arange(force.size) * 0.1
+    write_json(tmp_path / "T0lb_A300in.json", t, disp, force)
+    m = mapping(
+        source__control="force",
+        design__amplitude={"group": "amp", "unit": "N", "to": "N"},
+    )
+    mset, done = import_records(m, [tmp_path / "T0lb_A300in.json"], tmp_path / "out")
+    (case,) = mset.cases
+    assert case.control is Control.FORCE
+    assert case.amplitude_n == 300.0
+    assert case.loop is not None
+    assert case.loop.n_samples == force.size
+    assert done[0].split is None
