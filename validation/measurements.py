@@ -14,7 +14,16 @@ N, mm, s on reading; an unknown unit is refused by name. Every malformed entry r
 ``DataError`` naming the file, the data row (1-based, after the header) or the line, and
 the column. Nothing is dropped: a row is either read whole or the whole set is refused.
 
-A loop must reach the stated amplitude: after removing the force offset (see
+A **displacement-controlled** case (a rig that drives ±δ, as ``hingelab import-records``
+writes) says so in the optional columns ``control`` (``force``, the default, or
+``displacement``) and ``amplitude_mm`` (the controlled amplitude δ_a); its loop file is
+one cycle +δ → −δ → +δ, measured by ``validation.rig_cycles.process_displacement_cycle``,
+and its ``amplitude_N`` is the force amplitude the rig measured (a result, not a set
+point). Columns ``cond_<name>_<unit>`` (``cond_band_tension_N``) carry test conditions
+that are no hinge kind's design variable (``Case.conditions``). Files without these
+columns read as before.
+
+A force-controlled loop must reach the stated amplitude: after removing the force offset (see
 ``validation.loops``), ``max F ≥ (1 − AMPLITUDE_TOL)·Fg`` and ``min F ≤ −(1 − AMPLITUDE_TOL)·Fg``,
 and it must not overshoot by more than ``OVERSHOOT_TOL`` (which would mean the stated
 amplitude is wrong).
@@ -24,7 +33,7 @@ from __future__ import annotations
 
 import types
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -38,7 +47,9 @@ from validation.loop_files import (
     table_number,
     table_optional,
 )
-from validation.loops import process_loop, remove_offsets
+from validation.loops import ProcessedLoop, process_loop, remove_offsets
+from validation.rig_cycles import check_displacement_amplitude, process_displacement_cycle
+from validation.rig_mapping import CONDITION_PREFIX, Control
 
 __all__ = [
     "AMPLITUDE_TOL",
@@ -49,6 +60,7 @@ __all__ = [
     "MeasurementSet",
     "check_amplitude",
     "design_columns",
+    "process_case_loop",
     "read_eta_table",
     "read_measurement_set",
 ]
@@ -89,6 +101,11 @@ class Case:
         rate_mm_per_min: Crosshead rate [mm/min], or None.
         temperature_c: Test temperature [°C], or None.
         eta: Loss factor stated by an η-only table, or None.
+        control: What the rig controlled (force, or displacement: then ``amplitude_n`` is
+            the measured force amplitude and ``amplitude_mm`` the controlled one).
+        amplitude_mm: Controlled displacement amplitude δ_a [mm], or None.
+        conditions: Test conditions that are no kind's design variable (column without
+            the ``cond_`` prefix → value, e.g. ``{"band_tension_N": 133.4}``).
     """
 
     case_id: str
@@ -100,11 +117,14 @@ class Case:
     rate_mm_per_min: float | None = None
     temperature_c: float | None = None
     eta: float | None = None
+    control: Control = Control.FORCE
+    amplitude_mm: float | None = None
+    conditions: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        object.__setattr__(
-            self, "values", types.MappingProxyType(dict(sorted(self.values.items())))
-        )
+        for name in ("values", "conditions"):
+            mapping = getattr(self, name)
+            object.__setattr__(self, name, types.MappingProxyType(dict(sorted(mapping.items()))))
 
     def __reduce__(self) -> tuple[Any, ...]:  # mappingproxy does not pickle
         return (
@@ -112,13 +132,21 @@ class Case:
             (
                 self.case_id, self.hinge, dict(self.values), self.amplitude_n, self.loop,
                 self.replicate, self.rate_mm_per_min, self.temperature_c, self.eta,
+                self.control, self.amplitude_mm, dict(self.conditions),
             ),
         )  # fmt: skip
 
     @property
     def design_point(self) -> tuple[Any, ...]:
-        """(hinge, (name, value) pairs, amplitude [N]): replicates share it."""
-        return (self.hinge, tuple(self.values.items()), self.amplitude_n)
+        """(hinge, (name, value) pairs, controlled amplitude): replicates share it.
+
+        The amplitude is Fg [N] under force control, δ_a [mm] under displacement control;
+        test conditions, when there are any, follow the design values.
+        """
+        pairs = tuple(self.values.items()) + tuple(self.conditions.items())
+        if self.control is Control.DISPLACEMENT:
+            return (self.hinge, pairs, ("amplitude_mm", self.amplitude_mm))
+        return (self.hinge, pairs, self.amplitude_n)
 
     def describe(self) -> str:
         """The design values in words, e.g. ``Δr = 0.1 mm`` (the kind's symbols and units)."""
@@ -152,6 +180,23 @@ class MeasurementSet:
         for c in self.cases:
             groups.setdefault(c.design_point, []).append(c.case_id)
         return {k: tuple(v) for k, v in groups.items()}
+
+
+def process_case_loop(case: Case) -> ProcessedLoop:
+    """Process a case's loop as its control mode asks.
+
+    Force control: ``validation.loops.process_loop``; displacement control:
+    ``validation.rig_cycles.process_displacement_cycle``.
+
+    Raises:
+        DataError: If the case has no loop (an η-only row), or as the processing does.
+    """
+    if case.loop is None:
+        raise DataError(f"case {case.case_id!r}: no loop (an η-only row)")
+    loop = case.loop
+    if case.control is Control.DISPLACEMENT:
+        return process_displacement_cycle(loop.force_n, loop.displacement_mm, loop.source)
+    return process_loop(loop.force_n, loop.displacement_mm, loop.source)
 
 
 # --------------------------------------------------------------------------- amplitude
@@ -190,7 +235,10 @@ def check_amplitude(loop: Loop, amplitude_n: float, where: str) -> None:
 CASE_COLUMNS = ("case_id", "hinge", "amplitude_N", "loop_file")
 """Columns every cases.csv has; besides them, the design columns of its cases' kinds
 (``clearance_mm`` for the general hinge, ``preload_N`` for the bearing hinge)."""
-OPTIONAL_CASE_COLUMNS = ("replicate", "rate_mm_per_min", "temperature_C")
+OPTIONAL_CASE_COLUMNS = (
+    "replicate", "rate_mm_per_min", "temperature_C", "control", "amplitude_mm",
+)  # fmt: skip
+"""Optional columns; besides them, test conditions ``cond_<name>_<unit>`` (``Case.conditions``)."""
 
 
 def read_measurement_set(folder: Path | str) -> MeasurementSet:
@@ -224,7 +272,7 @@ def read_measurement_set(folder: Path | str) -> MeasurementSet:
         raise DataError(
             f"{table.path}: missing column(s) {missing}; columns are {list(table.header)}"
         )
-    unknown = [h for h in table.header if h not in allowed]
+    unknown = [h for h in table.header if h not in allowed and not _is_condition(h)]
     if unknown:
         raise DataError(f"{table.path}: unknown column(s) {unknown}; allowed: {list(allowed)}")
     cases: list[Case] = []
@@ -243,6 +291,31 @@ def read_measurement_set(folder: Path | str) -> MeasurementSet:
     if not cases:
         raise DataError(f"{table.path}: no cases")
     return MeasurementSet(tuple(cases), root)
+
+
+def _is_condition(column: str) -> bool:
+    return column.startswith(CONDITION_PREFIX) and len(column) > len(CONDITION_PREFIX)
+
+
+def _control(table: Table, i: int, cell: dict[str, str]) -> tuple[Control, float | None]:
+    """The row's control mode and, under displacement control, its amplitude_mm."""
+    text = cell.get("control", "") or Control.FORCE.value
+    try:
+        control = Control(text)
+    except ValueError:
+        raise DataError(
+            f"{table.where(i, 'control')}: must be one of {[c.value for c in Control]}, got {text!r}"
+        ) from None
+    if control is Control.FORCE:
+        return control, None
+    if "amplitude_mm" not in table.header:
+        raise DataError(
+            f"{table.path}: missing column amplitude_mm (row {i + 1} is displacement-controlled)"
+        )
+    amp = table_number(table, i, "amplitude_mm")
+    if amp <= 0:
+        raise DataError(f"{table.where(i, 'amplitude_mm')}: must be > 0, got {amp:g}")
+    return control, amp
 
 
 def _design_values(table: Table, i: int, hinge: str) -> dict[str, float]:
@@ -295,8 +368,14 @@ def _case_from_row(table: Table, i: int, cell: dict[str, str], root: Path) -> Ca
         raise DataError(f"{table.where(i, 'loop_file')}: loop file {loop_path} not found")
     loop = read_loop_file(loop_path)
     where = f"{loop_path} (case {cell['case_id']!r}, {table.path.name} row {i + 1})"
-    check_amplitude(loop, values["amplitude_N"], where)
-    process_loop(loop.force_n, loop.displacement_mm, where)  # refuses a record without the stages
+    control, amplitude_mm = _control(table, i, cell)
+    if control is Control.DISPLACEMENT:
+        check_displacement_amplitude(loop, amplitude_mm or 0.0, where)
+        process_displacement_cycle(loop.force_n, loop.displacement_mm, where)
+    else:
+        check_amplitude(loop, values["amplitude_N"], where)
+        # refuses a record without the stages
+        process_loop(loop.force_n, loop.displacement_mm, where)
     replicate = None
     if cell.get("replicate", ""):
         r = table_number(table, i, "replicate")
@@ -314,6 +393,13 @@ def _case_from_row(table: Table, i: int, cell: dict[str, str], root: Path) -> Ca
         replicate=replicate,
         rate_mm_per_min=rate,
         temperature_c=temp,
+        control=control,
+        amplitude_mm=amplitude_mm,
+        conditions={
+            h[len(CONDITION_PREFIX) :]: table_number(table, i, h)
+            for h in table.header
+            if _is_condition(h)
+        },
     )
 
 

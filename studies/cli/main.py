@@ -25,6 +25,7 @@ SUBCOMMAND_MODULES = (
     "studies.cli.study",
     "studies.cli.compare",
     "studies.cli.synth",
+    "studies.cli.import_records",
     "studies.cli.diagnose",
     "studies.cli.calibrate",
     "studies.cli.export_inp",
