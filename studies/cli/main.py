@@ -27,6 +27,7 @@ SUBCOMMAND_MODULES = (
     "studies.cli.synth",
     "studies.cli.diagnose",
     "studies.cli.calibrate",
+    "studies.cli.reduce",
     "studies.cli.export_inp",
     "studies.cli.repeatability",
     "studies.cli.paper",
