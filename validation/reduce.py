@@ -39,8 +39,13 @@ from fe.joint.history import force_history
 
 FloatArray = npt.NDArray[np.float64]
 
-FIT_NAMES = ("k_tension_n_per_mm", "k_compression_n_per_mm", "k_bank_n_per_mm", "slip_ratio",
-             "slip_force_n")
+FIT_NAMES = (
+    "k_tension_n_per_mm",
+    "k_compression_n_per_mm",
+    "k_bank_n_per_mm",
+    "slip_ratio",
+    "slip_force_n",
+)
 """The fitted parameters, in the order of the fit vector."""
 
 N_BRANCHES = 20
@@ -84,7 +89,9 @@ def _read_loop(path: Path) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int64
         d = np.array([float(r["displacement_mm"]) for r in rows])
         s = np.array([int(r["stage"]) for r in rows], dtype=np.int64)
     except (KeyError, ValueError) as err:
-        raise DataError(f"{path}: not a loop.csv of hingelab (force_N, displacement_mm, stage): {err}") from err
+        raise DataError(
+            f"{path}: not a loop.csv of hingelab (force_N, displacement_mm, stage): {err}"
+        ) from err
     return f, d, s
 
 
@@ -107,9 +114,21 @@ def read_points(folder: Path | str) -> list[FePoint]:
         params = dict(rec.get("params", {}))
         amp = float(params.pop("amplitude_N", res.get("amplitude_N", math.nan)))
         f, disp, stage = _read_loop(d / "loop.csv")
-        out.append(FePoint(d.name, params, amp, f, disp, stage, float(res.get("free_play_mm", 0.0)),
-                           float(res["eta"]), float(res["W_cycle_Nmm"]),
-                           float(res["disp_at_peak_mm"]), float(res["disp_at_minus_peak_mm"])))
+        out.append(
+            FePoint(
+                d.name,
+                params,
+                amp,
+                f,
+                disp,
+                stage,
+                float(res.get("free_play_mm", 0.0)),
+                float(res["eta"]),
+                float(res["W_cycle_Nmm"]),
+                float(res["disp_at_peak_mm"]),
+                float(res["disp_at_minus_peak_mm"]),
+            )
+        )
     if not out:
         raise DataError(f"{folder}: no finished FE point (points/*/result.json with loop.csv)")
     return out
@@ -127,15 +146,25 @@ def group_by_design(points: Sequence[FePoint]) -> dict[str, list[FePoint]]:
 def params_from_vector(theta: FloatArray, free_play_mm: float) -> JointParams:
     """The element of a fit vector (k₊, k₋, k_b, λ, F_s)."""
     kt, kc, kb, lam, fs = (float(v) for v in theta)
-    return JointParams(k_tension_n_per_mm=kt, k_compression_n_per_mm=kc,
-                       k_elastic_n_per_mm=kb / 2, k_slip_n_per_mm=kb / 2, slip_ratio=lam,
-                       slip_force_n=fs, free_play_mm=free_play_mm, n_branches=N_BRANCHES)
+    return JointParams(
+        k_tension_n_per_mm=kt,
+        k_compression_n_per_mm=kc,
+        k_elastic_n_per_mm=kb / 2,
+        k_slip_n_per_mm=kb / 2,
+        slip_ratio=lam,
+        slip_force_n=fs,
+        free_play_mm=free_play_mm,
+        n_branches=N_BRANCHES,
+    )
 
 
 @dataclass(frozen=True)
 class Measures:
-    """An element's loop at one FE point: δ(±Fg) [mm] (free play removed), W [N·mm], η, and
-    its displacements at the FE's forces, shape (n,) [mm]."""
+    """An element's loop at one FE point.
+
+    δ(±Fg) [mm] (free play removed), W [N·mm], η, and its displacements at the FE's
+    forces, shape (n,) [mm].
+    """
 
     d_plus_mm: float
     d_minus_mm: float
@@ -168,8 +197,15 @@ def residuals(theta: FloatArray, pts: Sequence[FePoint]) -> FloatArray:
         m = element_measures(p, pt)
         scale = 0.5 * (pt.d_plus_mm - pt.d_minus_mm)
         out.append((m.disp_mm - pt.disp_mm) / scale / math.sqrt(pt.force_n.size))
-        out.append(np.array([m.d_plus_mm / pt.d_plus_mm - 1, m.d_minus_mm / pt.d_minus_mm - 1,
-                             m.w_cycle_nmm / pt.w_cycle_nmm - 1]))
+        out.append(
+            np.array(
+                [
+                    m.d_plus_mm / pt.d_plus_mm - 1,
+                    m.d_minus_mm / pt.d_minus_mm - 1,
+                    m.w_cycle_nmm / pt.w_cycle_nmm - 1,
+                ]
+            )
+        )
     return np.concatenate(out)
 
 
@@ -198,17 +234,27 @@ class Reduced:
         """The validation table: per point δ(±Fg), W, η, FE vs element and their errors."""
         rows = []
         for pt, m in zip(self.points, self.measures, strict=True):
-            rows.append({
-                "design": self.design, "point": pt.label, "amplitude_N": pt.amplitude_n,
-                "d_plus_fe_mm": pt.d_plus_mm, "d_plus_el_mm": m.d_plus_mm,
-                "d_plus_err": m.d_plus_mm / pt.d_plus_mm - 1,
-                "d_minus_fe_mm": pt.d_minus_mm, "d_minus_el_mm": m.d_minus_mm,
-                "d_minus_err": m.d_minus_mm / pt.d_minus_mm - 1,
-                "W_fe_Nmm": pt.w_cycle_nmm, "W_el_Nmm": m.w_cycle_nmm,
-                "W_err": m.w_cycle_nmm / pt.w_cycle_nmm - 1,
-                "eta_fe": pt.eta, "eta_el": m.eta, "eta_err": m.eta / pt.eta - 1,
-                "free_play_fe_mm": pt.free_play_mm, "free_play_el_mm": self.params.free_play_mm,
-            })
+            rows.append(
+                {
+                    "design": self.design,
+                    "point": pt.label,
+                    "amplitude_N": pt.amplitude_n,
+                    "d_plus_fe_mm": pt.d_plus_mm,
+                    "d_plus_el_mm": m.d_plus_mm,
+                    "d_plus_err": m.d_plus_mm / pt.d_plus_mm - 1,
+                    "d_minus_fe_mm": pt.d_minus_mm,
+                    "d_minus_el_mm": m.d_minus_mm,
+                    "d_minus_err": m.d_minus_mm / pt.d_minus_mm - 1,
+                    "W_fe_Nmm": pt.w_cycle_nmm,
+                    "W_el_Nmm": m.w_cycle_nmm,
+                    "W_err": m.w_cycle_nmm / pt.w_cycle_nmm - 1,
+                    "eta_fe": pt.eta,
+                    "eta_el": m.eta,
+                    "eta_err": m.eta / pt.eta - 1,
+                    "free_play_fe_mm": pt.free_play_mm,
+                    "free_play_el_mm": self.params.free_play_mm,
+                }
+            )
         return rows
 
 
@@ -233,8 +279,15 @@ def fit_design(design: str, pts: Sequence[FePoint]) -> Reduced:
     sol = None
     for fs0 in (0.0, 0.05 * f_max):  # without and with fixed friction: microslip is a local optimum
         start = np.array([*x0[:4], fs0])
-        trial = least_squares(residuals, start, args=(pts,), bounds=(lo, hi), x_scale=scale,
-                              method="trf", diff_step=1e-6)
+        trial = least_squares(
+            residuals,
+            start,
+            args=(pts,),
+            bounds=(lo, hi),
+            x_scale=scale,
+            method="trf",
+            diff_step=1e-6,
+        )
         if sol is None or trial.cost < sol.cost:
             sol = trial
     assert sol is not None
@@ -247,6 +300,13 @@ def fit_design(design: str, pts: Sequence[FePoint]) -> Reduced:
         sig = np.full(n, math.nan)
     params = params_from_vector(sol.x, pts[0].free_play_mm)
     meas = tuple(element_measures(params, p) for p in pts)
-    return Reduced(design, params, dict(zip(FIT_NAMES, map(float, sol.x), strict=True)),
-                   dict(zip(FIT_NAMES, map(float, sig), strict=True)), tuple(pts), meas,
-                   time.perf_counter() - t0, float(sol.cost))
+    return Reduced(
+        design,
+        params,
+        dict(zip(FIT_NAMES, map(float, sol.x), strict=True)),
+        dict(zip(FIT_NAMES, map(float, sig), strict=True)),
+        tuple(pts),
+        meas,
+        time.perf_counter() - t0,
+        float(sol.cost),
+    )

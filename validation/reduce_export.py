@@ -46,7 +46,8 @@ class LinearHinge:
 def equivalent_linear(params: JointParams, amplitude_n: float, cycles: int = 2) -> LinearHinge:
     """The secant stiffness and GE = η of the element's steady loop ±Fg (force control)."""
     f = amplitude_n * np.concatenate(
-        [np.linspace(0, 1, 51)[1:]] + [np.linspace(1, -1, 101)[1:], np.linspace(-1, 1, 101)[1:]] * cycles
+        [np.linspace(0, 1, 51)[1:]]
+        + [np.linspace(1, -1, 101)[1:], np.linspace(-1, 1, 101)[1:]] * cycles
     )
     h = force_history(params, f)
     loop = slice(f.size - 200 - 1, f.size)
@@ -54,7 +55,9 @@ def equivalent_linear(params: JointParams, amplitude_n: float, cycles: int = 2) 
     w = float(h.dissipation_nmm[-1] - h.dissipation_nmm[loop.start])
     dp, dm = float(u[-1]), float(u[np.argmin(f[loop])])
     k = 2 * amplitude_n / (dp - dm)
-    return LinearHinge(amplitude_n, k, w / (2 * math.pi * 0.5 * amplitude_n * 0.5 * (dp - dm)), dp, dm)
+    return LinearHinge(
+        amplitude_n, k, w / (2 * math.pi * 0.5 * amplitude_n * 0.5 * (dp - dm)), dp, dm
+    )
 
 
 def _field(value: float | int | str) -> str:
@@ -92,7 +95,8 @@ def pbush_cards(params: JointParams, amplitudes_n: Sequence[float], pid0: int = 
 FMU_SLAVE = '''"""The hingelab reduced-order joint as an FMI 2.0 co-simulation slave (pythonfmu)."""
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
-from fe.joint.element import JointParams, initial_state, step
+from fe.joint.element import JointParams, initial_state
+from fe.joint.step import step
 
 PARAMS = {params!r}
 

@@ -31,7 +31,7 @@ vectorised over monotone segments; and a load-proportional slip strength (λ), w
 Bouc–Wen or Valanis law cannot express without a new law, is what a contact with zero
 clearance needs (its η does not depend on the amplitude).
 
-The step is exact: the response along a monotone increment is piecewise linear in u
+The step (``fe.joint.step``) is exact: the response along a monotone increment is piecewise linear in u
 (``fe.joint.segment``), so the force, the state and the consistent tangent dF/du (the
 slope of the piece the increment ends on, plus c/Δt) carry no discretisation error.
 """
@@ -168,70 +168,11 @@ class JointState:
         f = self.elastic_force_n(params)
         ks = params.k_tension_n_per_mm if f > 0 else params.k_compression_n_per_mm
         x = self.bank_mm
-        return float(0.5 * params.k_elastic_n_per_mm * x * x + 0.5 * k @ (x - s) ** 2 + f * f / (2 * ks))
+        return float(
+            0.5 * params.k_elastic_n_per_mm * x * x + 0.5 * k @ (x - s) ** 2 + f * f / (2 * ks)
+        )
 
 
 def initial_state(params: JointParams) -> JointState:
     """The unloaded element: springs relaxed, sliders at rest, the play centred."""
     return JointState(sliders_mm=np.zeros(params.n_branches))
-
-
-class Step(NamedTuple):
-    """One increment's answer: force F [N], consistent tangent dF/du [N/mm], the new state."""
-
-    force_n: float
-    tangent_n_per_mm: float
-    state: JointState
-
-
-def step(params: JointParams, state: JointState, disp_mm: float, dt_s: float | None = None) -> Step:
-    """Advance the element to the displacement ``disp_mm`` (displacement control).
-
-    Args:
-        params: The element.
-        state: The state after the previous increment (``initial_state`` to start).
-        disp_mm: The total displacement u at the end of the increment [mm].
-        dt_s: The increment's duration [s]; needed when ``damping_n_s_per_mm`` > 0
-            (F_v = c·(u − u_prev)/Δt, the backward-Euler rate).
-
-    Returns:
-        The force, the consistent tangent dF/du (the slope of the piecewise-linear
-        response where the increment ends, + c/Δt) and the new state.
-
-    Raises:
-        ParameterError: If damping needs ``dt_s`` and it is missing or not positive.
-    """
-    from fe.joint.segment import advance_displacement
-
-    c = _rate_factor(params, dt_s)
-    out = advance_displacement(params, state, np.array([float(disp_mm)]), c)
-    return Step(float(out.force[-1]), float(out.tangent[-1]), out.state)
-
-
-def step_force(
-    params: JointParams, state: JointState, force_n: float, dt_s: float | None = None
-) -> Step:
-    """Advance the element to the force ``force_n`` (force control).
-
-    Returns:
-        The force, the consistent tangent dF/du at the end of the increment and the new
-        state; the displacement is ``state.disp_mm``.
-
-    Raises:
-        ParameterError: If the force exceeds the element's capacity, or damping needs
-            ``dt_s``.
-    """
-    from fe.joint.segment import advance_force
-
-    c = _rate_factor(params, dt_s)
-    out = advance_force(params, state, np.array([float(force_n)]), c)
-    return Step(float(out.force[-1]), float(out.tangent[-1]), out.state)
-
-
-def _rate_factor(params: JointParams, dt_s: float | None) -> float:
-    """c/Δt [N/mm] of an increment (0 without a dashpot)."""
-    if params.damping_n_s_per_mm == 0.0:
-        return 0.0
-    if dt_s is None or not dt_s > 0.0:
-        raise ParameterError(f"dt_s must be > 0 with damping_n_s_per_mm > 0, got {dt_s}")
-    return params.damping_n_s_per_mm / dt_s

@@ -9,14 +9,16 @@ implicit equation per increment and runs increment by increment (``step_force``)
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
 from cad.errors import ParameterError
-from fe.joint.element import JointParams, JointState, initial_state, step_force
+from fe.joint.element import JointParams, JointState, initial_state
 from fe.joint.segment import Advance, advance_displacement, advance_force, breakpoints
+from fe.joint.step import step_force
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -57,7 +59,7 @@ def segments(values: FloatArray, start: float) -> list[slice]:
     filled = sign[nz][np.maximum(np.searchsorted(nz, np.arange(values.size), side="right") - 1, 0)]
     cuts = np.flatnonzero(np.diff(filled) != 0) + 1
     edges = [0, *cuts.tolist(), values.size]
-    return [slice(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    return [slice(a, b) for a, b in itertools.pairwise(edges)]
 
 
 def _collect(parts: list[Advance], state: JointState, viscous: FloatArray) -> History:
@@ -135,10 +137,25 @@ def _with_dashpot(
     fv = params.damping_n_s_per_mm * du / dt
     viscous = state.viscous_nmm + np.cumsum(fv * du)
     s = hist.state
-    end = JointState(s.disp_mm, s.force_n + float(fv[-1]), s.bank_mm, s.play_mm,
-                     s.sliders_mm, s.dissipation_nmm, float(viscous[-1]))
-    return History(hist.force_n + fv, hist.disp_mm, hist.tangent_n_per_mm,
-                   hist.elastic_energy_nmm, hist.dissipation_nmm, viscous, hist.play_mm, end)
+    end = JointState(
+        s.disp_mm,
+        s.force_n + float(fv[-1]),
+        s.bank_mm,
+        s.play_mm,
+        s.sliders_mm,
+        s.dissipation_nmm,
+        float(viscous[-1]),
+    )
+    return History(
+        hist.force_n + fv,
+        hist.disp_mm,
+        hist.tangent_n_per_mm,
+        hist.elastic_energy_nmm,
+        hist.dissipation_nmm,
+        viscous,
+        hist.play_mm,
+        end,
+    )
 
 
 def force_history(
@@ -184,7 +201,16 @@ def _force_with_dashpot(
     for k in range(f.size):
         st = step_force(params, s, float(f[k]), float(dt[k]))
         s = st.state
-        rows.append((st.force_n, s.disp_mm, st.tangent_n_per_mm, s.elastic_energy_nmm(params),
-                     s.dissipation_nmm, s.viscous_nmm, s.play_mm))
+        rows.append(
+            (
+                st.force_n,
+                s.disp_mm,
+                st.tangent_n_per_mm,
+                s.elastic_energy_nmm(params),
+                s.dissipation_nmm,
+                s.viscous_nmm,
+                s.play_mm,
+            )
+        )
     cols = [np.array(c) for c in zip(*rows, strict=True)]
     return History(*cols, state=s)

@@ -53,8 +53,10 @@ class Advance(NamedTuple):
 
 
 class _Frame(NamedTuple):
-    """A segment's start in the forward frame and its breakpoint table, shape (m,) each
-    (``*_mid``: at the pieces' midpoints, shape (m − 1,))."""
+    """A segment's start in the forward frame and its breakpoint table.
+
+    The columns have shape (m,); ``*_mid`` are at the pieces' midpoints, shape (m − 1,).
+    """
 
     d: float  # +1 forwards, −1 backwards (the frame's sign)
     s0: FloatArray  # (N,) slider positions at the start
@@ -101,6 +103,8 @@ def _frame(
     onset = np.maximum(np.where(y >= 0, y * br.inv_minus, y * br.inv_plus), x0)
     xb = np.sort(np.concatenate([onset, [x0, max(x0, 0.0)]]))
     fb = _bank_force(params, br, xb, s0)
+    if p0 < g:  # off the play's forward end the bank carries no tension (round-off aside)
+        fb[0] = min(fb[0], 0.0)
     k_pos, k_neg = _series(params, d)
     slope = params.k_elastic_n_per_mm + float(br.k @ br.lam)  # dF/dx beyond the last kink
     u_last = xb[-1] + g + fb[-1] / (k_pos if fb[-1] > 0 else k_neg)
@@ -233,8 +237,10 @@ def advance_force(
 
 
 def breakpoints(params: JointParams, state: JointState, disp_end: float) -> FloatArray:
-    """The displacements strictly between ``state.disp_mm`` and ``disp_end`` where the
-    response kinks (a branch's onset, x = 0, the free play's ends), shape (m,) [mm]."""
+    """The displacements where the response kinks, strictly inside the increment.
+
+    Kinks: a branch's onset, x = 0, the free play's ends; shape (m,) [mm].
+    """
     br = params.branches
     d = 1.0 if disp_end >= state.disp_mm else -1.0
     fr = _frame(params, br, state, d, d * disp_end, -np.inf)

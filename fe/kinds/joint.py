@@ -119,7 +119,11 @@ class JointKind:
         return Built(system=None, meshed=None)
 
     def run(
-        self, built: Built, params: Any, settings: CycleSettings, effects: Effects,
+        self,
+        built: Built,
+        params: Any,
+        settings: CycleSettings,
+        effects: Effects,
         progress: Progress | None,
     ) -> CycleResult:
         """Run the cycle (``run_joint_cycle``), then the effects' post-processing."""

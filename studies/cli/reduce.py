@@ -49,7 +49,9 @@ def _amplitudes(text: str | None) -> list[float] | None:
     try:
         values = [float(v) for v in text.split(",") if v.strip()]
     except ValueError as err:
-        raise ParameterError(f"--pbush-amplitudes must be numbers [N] like 100,400, got {text!r}") from err
+        raise ParameterError(
+            f"--pbush-amplitudes must be numbers [N] like 100,400, got {text!r}"
+        ) from err
     if not values or any(not v > 0 for v in values):
         raise ParameterError(f"--pbush-amplitudes must be > 0 N, got {text!r}")
     return values
@@ -85,7 +87,9 @@ def run(args: argparse.Namespace) -> int:
         f_max = max(p.amplitude_n for p in pts)
         spec = ModelSpec("joint", red.params, MeshSettings(), CycleSettings(amplitude_n=f_max))
         write_model(spec, folder / "reduced.toml.part").replace(folder / "reduced.toml")
-        _write_text(folder / "pbush.bdf", pbush_cards(red.params, amps or [p.amplitude_n for p in pts]))
+        _write_text(
+            folder / "pbush.bdf", pbush_cards(red.params, amps or [p.amplitude_n for p in pts])
+        )
         files = ["reduced.toml", "fit.json", "pbush.bdf"]
         if not args.no_fmu:
             write_fmu(red.params, folder / "joint.fmu")
@@ -125,14 +129,22 @@ def _print(summary: dict[str, Any], rows: list[dict[str, Any]], out: Path) -> No
         fit = ", ".join(
             f"{k} = {v:.5g} ± {info['sigma'][k]:.2g}" for k, v in info["fitted"].items()
         )
-        print(f"{design}: {fit}; free play {info['params']['free_play_mm']:g} mm "
-              f"(geometry {info['free_play_geometry_mm']:g}); fit {info['fit_s']:.1f} s")
-    print(f"{'design':<18s} {'Fg [N]':>7s} {'δ+ FE':>10s} {'δ+ el':>10s} {'err':>7s} "
-          f"{'δ− FE':>10s} {'δ− el':>10s} {'err':>7s} {'W FE':>10s} {'W el':>10s} "
-          f"{'η FE':>8s} {'η el':>8s} {'err':>7s}")
+        print(
+            f"{design}: {fit}; free play {info['params']['free_play_mm']:g} mm "
+            f"(geometry {info['free_play_geometry_mm']:g}); fit {info['fit_s']:.1f} s"
+        )
+    print(
+        f"{'design':<18s} {'Fg [N]':>7s} {'δ+ FE':>10s} {'δ+ el':>10s} {'err':>7s} "
+        f"{'δ− FE':>10s} {'δ− el':>10s} {'err':>7s} {'W FE':>10s} {'W el':>10s} "
+        f"{'η FE':>8s} {'η el':>8s} {'err':>7s}"
+    )
     for r in rows:
-        print(f"{r['design']:<18s} {r['amplitude_N']:7.0f} {r['d_plus_fe_mm']:10.4e} "
-              f"{r['d_plus_el_mm']:10.4e} {r['d_plus_err']:+7.2%} {r['d_minus_fe_mm']:10.4e} "
-              f"{r['d_minus_el_mm']:10.4e} {r['d_minus_err']:+7.2%} {r['W_fe_Nmm']:10.4e} "
-              f"{r['W_el_Nmm']:10.4e} {r['eta_fe']:8.5f} {r['eta_el']:8.5f} {r['eta_err']:+7.2%}")
-    print(f"results in {out}/ (validation.csv; per design reduced.toml, fit.json, pbush.bdf, joint.fmu)")
+        print(
+            f"{r['design']:<18s} {r['amplitude_N']:7.0f} {r['d_plus_fe_mm']:10.4e} "
+            f"{r['d_plus_el_mm']:10.4e} {r['d_plus_err']:+7.2%} {r['d_minus_fe_mm']:10.4e} "
+            f"{r['d_minus_el_mm']:10.4e} {r['d_minus_err']:+7.2%} {r['W_fe_Nmm']:10.4e} "
+            f"{r['W_el_Nmm']:10.4e} {r['eta_fe']:8.5f} {r['eta_el']:8.5f} {r['eta_err']:+7.2%}"
+        )
+    print(
+        f"results in {out}/ (validation.csv; per design reduced.toml, fit.json, pbush.bdf, joint.fmu)"
+    )
