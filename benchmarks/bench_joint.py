@@ -1,6 +1,6 @@
 """Speed of the reduced-order joint: a 10 000-sample history, a step, and a `reduce` fit.
 
-    python benchmarks/bench_joint.py [SWEEP_FOLDER]   # prints a table (CPU and wall time)
+python benchmarks/bench_joint.py [SWEEP_FOLDER]   # prints a table (CPU and wall time)
 """
 
 from __future__ import annotations
@@ -24,20 +24,37 @@ def timed(fn, repeat: int) -> tuple[float, float]:  # type: ignore[no-untyped-de
 
 
 def main() -> None:
-    p = JointParams(k_slip_n_per_mm=5e4, slip_ratio=0.3, slip_force_n=20.0, free_play_mm=0.01,
-                    k_tension_n_per_mm=1e5, k_compression_n_per_mm=2e5)
+    p = JointParams(
+        k_slip_n_per_mm=5e4,
+        slip_ratio=0.3,
+        slip_force_n=20.0,
+        free_play_mm=0.01,
+        k_tension_n_per_mm=1e5,
+        k_compression_n_per_mm=2e5,
+    )
     u = 0.02 * np.sin(2 * np.pi * np.linspace(0, 10, 10_000))
     f = displacement_history(p, u).force_n
     rows = [
-        ("displacement history, 10 000 samples, 10 cycles", *timed(lambda: displacement_history(p, u), 50)),
+        (
+            "displacement history, 10 000 samples, 10 cycles",
+            *timed(lambda: displacement_history(p, u), 50),
+        ),
         ("force history, 10 000 samples, 10 cycles", *timed(lambda: force_history(p, f), 50)),
-        ("one step (increment by increment)", *timed(lambda: step(p, initial_state(p), 0.01), 2000)),
+        (
+            "one step (increment by increment)",
+            *timed(lambda: step(p, initial_state(p), 0.01), 2000),
+        ),
     ]
     if len(sys.argv) > 1:
         from validation.reduce import fit_design, group_by_design, read_points
 
         for design, pts in group_by_design(read_points(sys.argv[1])).items():
-            rows.append((f"reduce fit, {design}, {len(pts)} points", *timed(lambda: fit_design(design, pts), 1)))
+            rows.append(
+                (
+                    f"reduce fit, {design}, {len(pts)} points",
+                    *timed(lambda d=design, g=pts: fit_design(d, g), 1),
+                )
+            )
     print(f"{'what':<55s} {'wall [ms]':>10s} {'CPU [ms]':>10s}")
     for name, wall, cpu in rows:
         print(f"{name:<55s} {wall * 1e3:10.3f} {cpu * 1e3:10.3f}")

@@ -40,6 +40,7 @@ def _fake_sweep(folder: Path, params: JointParams, amplitudes: list[float]) -> N
         (pt / "result.json").write_text(json.dumps(rec))
 
 
+@pytest.mark.slow  # two least-squares fits over three loops: ~5 s CPU
 def test_reduce_recovers_a_known_element_and_writes_runnable_files(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
     _fake_sweep(tmp_path / "sw", TRUE, [100.0, 250.0, 400.0])
     out = tmp_path / "red"
