@@ -40,6 +40,7 @@ ENTRY_POINT_GROUP = "hingelab.hinges"
 BUILTIN: Mapping[str, str] = {
     "general": "fe.kinds.general:GENERAL",
     "bearing": "fe.kinds.bearing:BEARING",
+    "joint": "fe.kinds.joint:JOINT",
 }
 """The kinds this package ships, by entry-point value (also listed in pyproject.toml)."""
 

@@ -28,6 +28,7 @@ SUBCOMMAND_MODULES = (
     "studies.cli.import_records",
     "studies.cli.diagnose",
     "studies.cli.calibrate",
+    "studies.cli.reduce",
     "studies.cli.export_inp",
     "studies.cli.repeatability",
     "studies.cli.paper",

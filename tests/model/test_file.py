@@ -153,7 +153,7 @@ def write(tmp_path, text):
         (
             '[hinge]\nkind = "hinged"\n',
             ParameterError,
-            r"kind must be one of \['bearing', 'general'\], got 'hinged'",
+            r"kind must be one of \['bearing', 'general', 'joint'\], got 'hinged'",
         ),
         (
             '[hinge]\nkind = "bearing"\narrangement = "SIDEWAYS"\n',
