@@ -11,7 +11,6 @@ import build123d as bd
 from cad.errors import GeometryError
 from cad.model import HingeModel
 
-
 _FILE_NAME_TIME = re.compile(rb"(FILE_NAME\s*\(\s*'(?:[^']|'')*'\s*,\s*')[^']*(')")
 """The time stamp of a STEP header, ``FILE_NAME('name','2026-11-27T08:12:45',...)``."""
 

@@ -116,8 +116,10 @@ COMMANDS_FILE = "commands.jsonl"
 """Where a result folder keeps the command lines that wrote into it, one JSON object a line."""
 
 
-def record_command(folder: Path, argv: list[str], exit_status: int) -> Path:
-    """Append the command line that ran (``hingelab`` + ``argv``) to ``folder/commands.jsonl``.
+def record_command(
+    folder: Path, argv: list[str], exit_status: int, program: tuple[str, ...] = ("hingelab",)
+) -> Path:
+    """Append the command line that ran (``program`` + ``argv``) to ``folder/commands.jsonl``.
 
     Each line holds the command as one shell-quoted string, its arguments, the folder it
     ran in (relative paths in it are relative to that), the time it ended (UTC), its exit
@@ -128,6 +130,7 @@ def record_command(folder: Path, argv: list[str], exit_status: int) -> Path:
         folder: The result folder (must exist).
         argv: The arguments after ``hingelab``, as typed.
         exit_status: What the command returned (0 ok, 1 error, 130 interrupted).
+        program: The words before ``argv`` (``python -m studies.paper.validation``).
 
     Returns:
         The file.
@@ -142,7 +145,7 @@ def record_command(folder: Path, argv: list[str], exit_status: int) -> Path:
     except metadata.PackageNotFoundError:
         version = "unknown"
     entry = {
-        "command": shlex.join(["hingelab", *argv]),
+        "command": shlex.join([*program, *argv]),
         "argv": list(argv),
         "cwd": os.getcwd(),
         "ended_utc": dt.datetime.now(dt.UTC).replace(microsecond=0).isoformat(),

@@ -119,11 +119,13 @@ def _record(args: argparse.Namespace, typed: list[str], status: int) -> None:
     """Append the command line to its result folder (``--out DIR``), if it has one."""
     from pathlib import Path
 
-    from studies.outputs import record_command
+    from studies.outputs import COMMANDS_FILE, record_command
 
     out = getattr(args, "out", None)
     if not isinstance(out, Path) or not out.is_dir() or getattr(args, "dry_run", False):
         return  # no result folder (a file, none, or a dry run that wrote nothing)
+    if not any(p.name != COMMANDS_FILE for p in out.iterdir()):
+        return  # the command wrote nothing there (refused before any work)
     try:
         record_command(out, typed, status)
     except OSError as err:  # the results are there; a read-only folder only loses the line

@@ -28,8 +28,8 @@ from importlib import metadata
 from pathlib import Path
 
 from cad.errors import DataError
-from studies.report.paper import paper_study_report
 from studies.outputs import recorded_commands
+from studies.report.paper import paper_study_report
 from studies.report.parts import CSS, Html, esc, join, kv_table, tag
 from studies.report.repeatability import repeatability_report
 from studies.report.sections import ReportBody, cycle_report

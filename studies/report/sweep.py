@@ -94,7 +94,9 @@ def _trace_points(con: sqlite3.Connection, root: Path) -> list[TracePoint]:
         params.setdefault(pid, {})[name] = value
     arts: dict[int, dict[str, Path]] = {}
     hashes: dict[int, dict[str, str]] = {}
-    for pid, kind, path, digest in con.execute("SELECT point_id, kind, path, sha256 FROM artifacts"):
+    for pid, kind, path, digest in con.execute(
+        "SELECT point_id, kind, path, sha256 FROM artifacts"
+    ):
         p = Path(path)
         arts.setdefault(pid, {})[kind] = p if p.is_absolute() else root / p
         hashes.setdefault(pid, {})[kind] = digest
@@ -195,7 +197,7 @@ def _plain(value: Any) -> Any:
 
 
 def point_settings(p: TracePoint) -> dict[str, Any]:
-    """The settings a point ran with, flat: ``mu``, ``increments_per_stage``, ``mesh size_mm``…"""
+    """The settings a point ran with, flat (``mu``, ``increments_per_stage``, ``mesh size_mm``)."""
     flat: dict[str, Any] = {}
     for k, v in p.solver.items():
         if k in NOT_SETTINGS:
@@ -340,11 +342,15 @@ def _run_of_sweep(
     ok = sum(p.status == "ok" for p in points)
     names = sorted({n for p in points for n in p.params})
     values = {n: sorted({p.params[n] for p in points if n in p.params}, key=str) for n in names}
-    mesh = [f"{k.removeprefix('mesh ')} = {fmt(v)}" for k, v in common.items() if k.startswith("mesh ")]
+    mesh = [
+        f"{k.removeprefix('mesh ')} = {fmt(v)}" for k, v in common.items() if k.startswith("mesh ")
+    ]
     order = list(SETTING_WORDS)
     others = [
         (SETTING_WORDS.get(k, k), v)
-        for k, v in sorted(common.items(), key=lambda kv: order.index(kv[0]) if kv[0] in order else len(order))
+        for k, v in sorted(
+            common.items(), key=lambda kv: order.index(kv[0]) if kv[0] in order else len(order)
+        )
         if not k.startswith("mesh ")
     ]
     run: list[tuple[str, object]] = [
@@ -364,7 +370,9 @@ def _run_of_sweep(
             else "none: every point ran with the settings above",
         )
     )
-    run.append(("table of the last run", "table.csv" if table_csv.is_file() else "— (no table.csv)"))
+    run.append(
+        ("table of the last run", "table.csv" if table_csv.is_file() else "— (no table.csv)")
+    )
     return run
 
 
