@@ -150,7 +150,9 @@ def test_a_rerun_rewriting_an_unchanged_step_is_not_changed_a_new_geometry_is(tm
     model = make_general_hinge(GeneralHingeParams(clearance_mm=0.0))
     first = _backdate_step(write_step(model, step))
     db = tmp_path / "trace.sqlite"
-    pid = trace_store.record_point(db, study="s", params={"clearance_mm": 0.0}, artifacts={"step": step})
+    pid = trace_store.record_point(
+        db, study="s", params={"clearance_mm": 0.0}, artifacts={"step": step}
+    )
     write_step(model, step)  # the rerun: same geometry, exported now
     os.utime(step, (1e9, 2e9))  # and a modification time of its own: not looked at
     assert step.read_bytes() == first

@@ -93,7 +93,9 @@ def test_the_first_runs_files_survive_the_rerun(rerun) -> None:  # type: ignore[
         assert bad == [], f"point {w.point_id}: {bad}"
         kinds = {a.kind for a in w.artifacts}
         assert {"loop_csv", "loop_png", "result_json"} <= kinds
-        manifest = json.loads(next(a.path for a in w.artifacts if a.kind == "result_json").read_text())
+        manifest = json.loads(
+            next(a.path for a in w.artifacts if a.kind == "result_json").read_text()
+        )
         assert manifest["solver"]["result_key"] == w.solver["result_key"]
     assert len(list((out / "points").iterdir())) == 4  # two points × two μ, none shared
 
