@@ -35,13 +35,13 @@ from mesh.meshed import MeshedHinge
 from model.spec import (
     DesignPoint,
     ModelSpec,
+    geometry_folder,
     geometry_key,
     hinge_at,
     point_label,
     resolve_structural,
     result_key,
     structure_at,
-    structure_label,
 )
 from model.store import ResultStore
 
@@ -132,7 +132,8 @@ class ModelService:
         store: Where results are kept by key (None: nothing is kept between runs).
         cache_dir: Where nodal compliances are kept by mesh hash (None: in memory only).
         geometry_dir: Folder for a geometry's STEP, mesh and picture files, given its
-            label (``model.spec.structure_label``, e.g. ``c0.100``; None: no files).
+            folder name (``model.spec.geometry_folder``, e.g. ``c0.100-5e6f7a8b9c``: the
+            label and the geometry key; None: no files).
         max_geometries: Prepared geometries kept in memory (the least recently used is
             dropped); None keeps all (a diagnosis revisits every clearance).
     """
@@ -164,7 +165,7 @@ class ModelService:
             self._prepared.move_to_end(key)
             return self._prepared[key]
         t0 = time.perf_counter()
-        out = None if self.geometry_dir is None else self.geometry_dir(structure_label(spec, point))
+        out = None if self.geometry_dir is None else self.geometry_dir(geometry_folder(spec, point))
         built = spec.hinge_kind.build(structure_at(spec, point), spec.mesh, out, self.cache_dir)
         prepared = Prepared(key, built)
         prepared.setup_s = time.perf_counter() - t0

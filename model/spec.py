@@ -261,3 +261,31 @@ def result_key(spec: ModelSpec, point: DesignPoint) -> str:
             "version": package_version(),
         }
     )
+
+
+KEY_CHARS = 10
+"""Hex digits of a key in a folder name: 40 bits, so two keys of one folder share them by
+chance once in about 10^12 pairs (a folder name is checked against the full key in its
+``result.json`` before it is shown as a point's)."""
+
+
+def point_folder(spec: ModelSpec, point: DesignPoint, key: str | None = None) -> str:
+    """Folder name of a point's files: its label and its result key, ``c0.100_F300-1f2e3d4c5b``.
+
+    The key makes the folder the point's own: a rerun with another μ, mesh, protocol or
+    effect writes another folder instead of overwriting this one.
+
+    Args:
+        spec: The model.
+        point: The design point.
+        key: Its result key, when already known (``result_key(spec, point)`` otherwise).
+    """
+    return f"{point_label(spec, point)}-{(key or result_key(spec, point))[:KEY_CHARS]}"
+
+
+def geometry_folder(spec: ModelSpec, point: DesignPoint) -> str:
+    """Folder name of a point's geometry files: ``c0.100-5e6f7a8b9c`` (label and geometry key).
+
+    Two meshes of one clearance (another mesh preset) get two folders.
+    """
+    return f"{structure_label(spec, point)}-{geometry_key(spec, point)[:KEY_CHARS]}"

@@ -79,7 +79,7 @@ __all__ = [
     "walk",
 ]
 
-ARTIFACT_ORDER = ("step", "mesh_msh", "mesh_png", "loop_csv", "loop_png")
+ARTIFACT_ORDER = ("step", "mesh_msh", "mesh_png", "loop_csv", "loop_png", "result_json")
 """The chain's order: geometry → mesh → (solver) → loop. Other kinds follow these."""
 
 
@@ -230,13 +230,13 @@ def format_trace(t: PointTrace) -> str:
     def art(kind: str) -> None:
         a = by_kind.pop(kind, None)
         if a is None:
-            lines.append(f"  -> {kind:<9} (not recorded)")
+            lines.append(f"  -> {kind:<11} (not recorded)")
         elif a.state is ArtifactState.OK:
             lines.append(
-                f"  -> {kind:<9} {a.path}  [sha256 {a.sha256[:12]}…, {a.size_bytes} B, ok]"
+                f"  -> {kind:<11} {a.path}  [sha256 {a.sha256[:12]}…, {a.size_bytes} B, ok]"
             )
         else:
-            lines.append(f"  -> {kind:<9} {a.state.value.upper()}: {a.message}")
+            lines.append(f"  -> {kind:<11} {a.state.value.upper()}: {a.message}")
 
     art("step")
     art("mesh_msh")

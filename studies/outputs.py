@@ -110,3 +110,69 @@ def check_trace_db(db: Path, option: str) -> Path:
             f"(tables {sorted(names)}; a trace has {list(TRACE_TABLES)})"
         )
     return db
+
+
+COMMANDS_FILE = "commands.jsonl"
+"""Where a result folder keeps the command lines that wrote into it, one JSON object a line."""
+
+
+def record_command(
+    folder: Path, argv: list[str], exit_status: int, program: tuple[str, ...] = ("hingelab",)
+) -> Path:
+    """Append the command line that ran (``program`` + ``argv``) to ``folder/commands.jsonl``.
+
+    Each line holds the command as one shell-quoted string, its arguments, the folder it
+    ran in (relative paths in it are relative to that), the time it ended (UTC), its exit
+    status and hingelab's version; ``hingelab report`` shows them. One line is appended in
+    one write, so a line is never half there.
+
+    Args:
+        folder: The result folder (must exist).
+        argv: The arguments after ``hingelab``, as typed.
+        exit_status: What the command returned (0 ok, 1 error, 130 interrupted).
+        program: The words before ``argv`` (``python -m studies.paper.validation``).
+
+    Returns:
+        The file.
+    """
+    import datetime as dt
+    import json
+    import shlex
+    from importlib import metadata
+
+    try:
+        version = metadata.version("hingelab")
+    except metadata.PackageNotFoundError:
+        version = "unknown"
+    entry = {
+        "command": shlex.join([*program, *argv]),
+        "argv": list(argv),
+        "cwd": os.getcwd(),
+        "ended_utc": dt.datetime.now(dt.UTC).replace(microsecond=0).isoformat(),
+        "exit_status": exit_status,
+        "version": version,
+    }
+    path = Path(folder) / COMMANDS_FILE
+    with path.open("a", encoding="utf-8") as fh:
+        fh.write(json.dumps(entry, ensure_ascii=False) + "\n")
+    return path
+
+
+def recorded_commands(folder: Path) -> list[dict[str, Any]]:
+    """The commands recorded in ``folder/commands.jsonl``, oldest first (unreadable lines skipped)."""
+    import json
+
+    path = Path(folder) / COMMANDS_FILE
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return []
+    out = []
+    for line in lines:
+        try:
+            entry = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(entry, dict) and isinstance(entry.get("command"), str):
+            out.append(entry)
+    return out

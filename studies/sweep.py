@@ -29,10 +29,15 @@ Layout of ``out``::
     trace.sqlite                    the trace (rsm.trace schema); solver_json holds the result key
     table.csv                       one row per ok point of this run: point_id, parameters, results
     results/KEY.npz                 each computed cycle, by result key (safe to delete: recomputed)
-    geometry/c0.100/                hinge.step, mesh.msh, mesh.vtu, mesh.png (``base`` for a kind
-                                    whose design variable does not change the mesh)
+    geometry/c0.100-5e6f7a8b9c/     hinge.step, mesh.msh, mesh.vtu, mesh.png: the geometry's label
+                                    (``base`` for a kind whose design variable does not change the
+                                    mesh) and its geometry key (another mesh: another folder)
     cache/                          nodal compliances by mesh content hash (safe to delete)
-    points/c0.100_F300/             loop.csv, loop.png, result.json
+    points/c0.100_F300-1f2e3d4c5b/  loop.csv, loop.png, result.json (with the full result key):
+                                    the point's label and its result key, so a rerun with another
+                                    μ, mesh, protocol or effect never overwrites an earlier point's
+                                    files (``model.spec.point_folder``)
+    commands.jsonl                  every command that wrote into the folder (the report shows it)
 """
 
 from __future__ import annotations

@@ -27,8 +27,8 @@ def point_params(spec: ModelSpec, p: DesignPoint) -> dict[str, float]:
 
 
 def geometry_folder(out: Path) -> Callable[[str], Path]:
-    """Where a sweep writes the files of a geometry, by its label (``c0.100``)."""
-    return lambda label: out / "geometry" / label
+    """Where a sweep writes the files of a geometry, by its folder name (``c0.100-5e6f7a8b9c``)."""
+    return lambda name: out / "geometry" / name
 
 
 def mesh_stats_of(prepared: Prepared) -> dict[str, Any]:
@@ -54,6 +54,9 @@ def point_record(
 ) -> dict[str, Any]:
     """Write a point's files (loop CSV/PNG, result.json) and return its trace record.
 
+    The files go to ``points/<label>-<key>/`` (``model.spec.point_folder``), a folder no
+    other result key shares; the geometry's to ``geometry/<label>-<geometry key>/``.
+
     Args:
         run: The point's ``model.service.PointRun``.
         settings: The sweep.
@@ -70,12 +73,13 @@ def point_record(
         lu_threads = int(newton.LU_THREADS)
     spec = settings.spec()
 
-    from model.spec import describe_point, point_label, structure_label
+    from model.spec import describe_point, geometry_folder, point_folder
 
     p = run.point
-    folder = out / "points" / point_label(spec, p)
+    # named by the result key: a rerun with other settings never writes into this folder
+    folder = out / "points" / point_folder(spec, p, run.key)
     folder.mkdir(parents=True, exist_ok=True)
-    geo = out / "geometry" / structure_label(spec, p)
+    geo = out / "geometry" / geometry_folder(spec, p)
     artifacts: dict[str, Any] = {
         "step": geo / "hinge.step",
         "mesh_msh": geo / "mesh.msh",
@@ -122,7 +126,9 @@ def point_record(
             artifacts["loop_csv"] = write_loop_csv(run.partial, folder / "loop_partial.csv")
         rec["results"], rec["convergence"] = {}, {}
         rec["status"], rec["error"] = "failed", run.error
-    (folder / "result.json").write_text(dumps({k: v for k, v in rec.items() if k != "artifacts"}))
+    manifest = folder / "result.json"  # carries the result key: the report checks it
+    manifest.write_text(dumps({k: v for k, v in rec.items() if k != "artifacts"}))
+    artifacts["result_json"] = manifest
     return rec
 
 

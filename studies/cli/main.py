@@ -73,15 +73,27 @@ def _os_message(err: OSError) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; return the process exit status."""
+    """Run the command line; return the process exit status.
+
+    A command whose ``--out`` is a folder (a result folder) gets its command line appended
+    to ``commands.jsonl`` there when it ends (``studies.outputs.record_command``), with
+    its exit status, so ``hingelab report`` shows the command that really ran.
+    """
+    typed = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(typed)
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
     for name in CHATTY_LIBRARIES:  # their INFO lines say nothing a user can act on
         logging.getLogger(name).setLevel(logging.WARNING)
+    status = _run(args)
+    _record(args, typed, status)
+    return status
+
+
+def _run(args: argparse.Namespace) -> int:
     try:
         return int(args.func(args))
     except HingelabError as err:
@@ -102,6 +114,23 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 130
+
+
+def _record(args: argparse.Namespace, typed: list[str], status: int) -> None:
+    """Append the command line to its result folder (``--out DIR``), if it has one."""
+    from pathlib import Path
+
+    from studies.outputs import COMMANDS_FILE, record_command
+
+    out = getattr(args, "out", None)
+    if not isinstance(out, Path) or not out.is_dir() or getattr(args, "dry_run", False):
+        return  # no result folder (a file, none, or a dry run that wrote nothing)
+    if not any(p.name != COMMANDS_FILE for p in out.iterdir()):
+        return  # the command wrote nothing there (refused before any work)
+    try:
+        record_command(out, typed, status)
+    except OSError as err:  # the results are there; a read-only folder only loses the line
+        logging.getLogger(__name__).warning("could not record the command in %s: %s", out, err)
 
 
 if __name__ == "__main__":

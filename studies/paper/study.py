@@ -196,8 +196,8 @@ def _eta_at(h: dict[str, Any] | None, x_names: tuple[str, str], at: tuple[float,
     return None
 
 
-def _copy_loop(sweep_out: Path, label: str, dest: Path) -> str | None:
-    src = sweep_out / "points" / label / "loop.png"
+def _copy_loop(sweep_out: Path, folder: str, dest: Path) -> str | None:
+    src = sweep_out / "points" / folder / "loop.png"
     if not src.is_file():
         return None
     dest.parent.mkdir(parents=True, exist_ok=True)
@@ -241,8 +241,8 @@ def run_paper(study: PaperStudy, out: Path) -> dict[str, Any]:
     )
     loops = {}
     for name in ("general", "modified"):
-        label = _label(sweeps[name], name)
-        loops[name] = _copy_loop(out / name, label, out / "figures" / f"{name}_loop_{label}.png")
+        label, folder = _label(sweeps[name], name)
+        loops[name] = _copy_loop(out / name, folder, out / "figures" / f"{name}_loop_{label}.png")
     report["loops"] = loops
     g, mo = report.get("general"), report.get("modified")
     if g and mo:
@@ -297,9 +297,9 @@ LABEL_NEAR = {"general": 0.1, "modified": 0.0}
 """The design value near which each case's example loop is shown (Δr 0.1 mm, F_p 0 N)."""
 
 
-def _label(settings: Any, name: str) -> str:
-    """The point closest to 400 N (and Δr 0.1 mm / F_p 0) of a sweep, as a folder label."""
-    from model.spec import complete_point, point_label
+def _label(settings: Any, name: str) -> tuple[str, str]:
+    """The point closest to 400 N (and Δr 0.1 mm / F_p 0) of a sweep: its label and folder."""
+    from model.spec import complete_point, point_folder, point_label
 
     spec = settings.spec()
     variable = spec.hinge_kind.design_variables[0].name
@@ -308,7 +308,8 @@ def _label(settings: Any, name: str) -> str:
         value = complete_point(spec, p).values[variable]
         return (abs(p.amplitude_n - 400), abs(value - LABEL_NEAR[name]))
 
-    return point_label(spec, min(settings.design_points(), key=distance))
+    point = min(settings.design_points(), key=distance)
+    return point_label(spec, point), point_folder(spec, point)
 
 
 def _fmt(v: Any, spec: str = ".4f") -> str:

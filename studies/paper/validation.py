@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -151,8 +152,12 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, required=True, metavar="DIR")
     p.add_argument("--quick", action="store_true", help="coarse mesh (the tests' model)")
-    args = p.parse_args(argv)
+    typed = list(sys.argv[1:] if argv is None else argv)
+    args = p.parse_args(typed)
     report = run(args.out, args.quick)
+    from studies.outputs import record_command
+
+    record_command(args.out, typed, 0, ("python", "-m", "studies.paper.validation"))
     print((args.out / "report.md").read_text())
     print(f"report in {args.out}/report.json ({report['wall_s']:.0f} s)")
     return 0

@@ -3,8 +3,10 @@
 The kind of folder is recognised by its files (:data:`SIGNATURES`): a load cycle
 (``hingelab cycle``), a sweep (``hingelab sweep``, with the plots of an ``rsm fit`` when
 present), a paper validation (``python -m studies.paper.validation``), the paper's
-surfaces refitted (``hingelab rsm paper``), a comparison (``hingelab compare``) or a
-calibration (``hingelab calibrate``). The page embeds every figure as a base64 PNG
+surfaces refitted (``hingelab rsm paper``), a comparison (``hingelab compare``), a
+calibration (``hingelab calibrate``) or a repeatability analysis (``hingelab
+repeatability``). Its "command" row is the command line that wrote the folder, as
+recorded there (``commands.jsonl``, ``studies.outputs.record_command``). The page embeds every figure as a base64 PNG
 ``data:`` URI and its style sheet inline; it loads nothing from the network and needs
 no script. Links to result files (STEP, VTU, loop CSV, …) are relative to the page.
 
@@ -26,9 +28,12 @@ from importlib import metadata
 from pathlib import Path
 
 from cad.errors import DataError
+from studies.outputs import recorded_commands
 from studies.report.paper import paper_study_report
 from studies.report.parts import CSS, Html, esc, join, kv_table, tag
-from studies.report.sections import ReportBody, cycle_report, sweep_report
+from studies.report.repeatability import repeatability_report
+from studies.report.sections import ReportBody, cycle_report
+from studies.report.sweep import sweep_report
 from studies.report.validation import (
     calibrate_report,
     compare_report,
@@ -47,6 +52,7 @@ class ReportKind(Enum):
     RSM_PAPER = "rsm paper"
     CALIBRATE = "calibrate"
     COMPARE = "compare"
+    REPEATABILITY = "repeatability"
 
 
 SIGNATURES: dict[ReportKind, tuple[str, ...]] = {
@@ -57,6 +63,7 @@ SIGNATURES: dict[ReportKind, tuple[str, ...]] = {
     ReportKind.RSM_PAPER: ("paper_comparison.json",),
     ReportKind.CALIBRATE: ("ledger.json",),
     ReportKind.COMPARE: ("comparison.json",),
+    ReportKind.REPEATABILITY: ("repeatability.json",),
 }
 """The files (or folders) that identify each kind, checked in this order."""
 
@@ -68,6 +75,7 @@ _BUILDERS: dict[ReportKind, Callable[[Path, Path], ReportBody]] = {
     ReportKind.RSM_PAPER: rsm_paper_report,
     ReportKind.CALIBRATE: calibrate_report,
     ReportKind.COMPARE: compare_report,
+    ReportKind.REPEATABILITY: repeatability_report,
 }
 
 _MAIN_FILE = {kind: names[0] for kind, names in SIGNATURES.items()}
@@ -128,12 +136,62 @@ def report_meta(folder: Path, kind: ReportKind) -> ReportMeta:
     return ReportMeta(package_version(), _utc(), _utc(main.stat().st_mtime))
 
 
+def command_rows(folder: Path, made_by: str) -> list[tuple[str, object]]:
+    """The "command" rows: the command lines recorded in the folder, or that none was.
+
+    Args:
+        folder: The result folder.
+        made_by: What kind of command makes such a folder (shown when none was recorded).
+    """
+    records = recorded_commands(folder)
+    if not records:
+        return [
+            (
+                "command",
+                "not recorded in this folder (written by a hingelab older than its "
+                f"commands.jsonl); folders of this kind are made by: {made_by}",
+            )
+        ]
+    ok = [r for r in records if r.get("exit_status") == 0]
+    last = (ok or records)[-1]
+    rows: list[tuple[str, object]] = [
+        ("command", last["command"]),
+        ("run in", last.get("cwd", "—")),
+        ("ended", f"{last.get('ended_utc', '—')}, exit status {last.get('exit_status', '—')}"),
+    ]
+    others = [r for r in records if r is not last]
+    if others:
+        rows.append(
+            (
+                "other commands in this folder",
+                tag(
+                    "ul",
+                    join(
+                        tag("li", f"{r['command']} ({r.get('ended_utc', '—')}, "
+                                  f"exit status {r.get('exit_status', '—')})")
+                        for r in others
+                    ),
+                ),
+            )
+        )  # fmt: skip
+    return rows
+
+
+def _with_commands(folder: Path, run: list[tuple[str, object]]) -> list[tuple[str, object]]:
+    """``run`` with its "command" row (what makes such a folder) replaced by the real one."""
+    made_by = next((str(v) for k, v in run if k == "command"), "hingelab")
+    rows = command_rows(folder, made_by)
+    out = [r for r in run if r[0] != "command"]
+    at = next((i for i, r in enumerate(run) if r[0] == "command"), 0)
+    return out[:at] + rows + out[at:]
+
+
 def render_html(folder: Path, kind: ReportKind, body: ReportBody, meta: ReportMeta) -> str:
     """Assemble the page: header, what was run, table of contents, sections, footer."""
     run = [
         ("result folder", str(folder)),
         ("kind", f"{kind.value} (recognised by {' + '.join(SIGNATURES[kind])})"),
-        *body.run,
+        *_with_commands(folder, body.run),
         ("results written", meta.run_utc),
         ("report made", f"{meta.generated_utc} with hingelab {meta.version}"),
     ]

@@ -96,6 +96,17 @@ def fit_json_block(path: Path) -> Html:
     )
 
 
+def _whose(d: Path) -> str:
+    """``rsm/``, and which fit of the trace its files are (a rerun rewrites them)."""
+    import json
+
+    try:
+        fid = json.loads((d / "fit.json").read_text(encoding="utf-8")).get("trace_fit_id")
+    except (OSError, ValueError, AttributeError):
+        fid = None
+    return f"{d.name}/" + (f": fit {fid} of the trace" if isinstance(fid, int) else "")
+
+
 def rsm_fit_sections(folder: Path, fits: list[dict[str, Any]], report_dir: Path) -> list[Section]:
     """The response surfaces of a sweep or study: trace fits, fit.json and the plots."""
     out: list[Section] = []
@@ -113,5 +124,5 @@ def rsm_fit_sections(folder: Path, fits: list[dict[str, Any]], report_dir: Path)
                 plots,
             ]
         )
-        out.append(Section(f"rsm-{d.name}", f"Surfaces and threshold regions ({d.name}/)", body))
+        out.append(Section(f"rsm-{d.name}", f"Surfaces and threshold regions ({_whose(d)})", body))
     return out

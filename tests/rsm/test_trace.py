@@ -123,3 +123,43 @@ def test_export_fit_and_record_fit(tmp_path):
             db, surface=s, metrics=fit_metrics(s, warn=False), point_ids=[*ids[:-1], 999]
         )
     assert np.isfinite(s.condition_number)
+
+
+def _backdate_step(path, stamp=b"2001-01-01T00:00:00"):
+    """Give a STEP file the header of an export made long ago (as by an earlier run)."""
+    import re
+
+    data = re.sub(rb"(FILE_NAME\('[^']*',')[^']*", rb"\g<1>" + stamp, path.read_bytes(), count=1)
+    path.write_bytes(data)
+    return data
+
+
+def test_a_rerun_rewriting_an_unchanged_step_is_not_changed_a_new_geometry_is(tmp_path):
+    """The geometry of a rerun is exported again: the trace flags only a real change.
+
+    OpenCASCADE writes the time of export into the STEP header, so before the fix every
+    rerun replaced hinge.step with new bytes and the trace called it CHANGED.
+    """
+    import os
+
+    from cad.general import GeneralHingeParams, make_general_hinge
+    from cad.step import write_step
+
+    step = tmp_path / "geometry" / "c0.000" / "hinge.step"
+    step.parent.mkdir(parents=True)
+    model = make_general_hinge(GeneralHingeParams(clearance_mm=0.0))
+    first = _backdate_step(write_step(model, step))
+    db = tmp_path / "trace.sqlite"
+    pid = trace_store.record_point(
+        db, study="s", params={"clearance_mm": 0.0}, artifacts={"step": step}
+    )
+    write_step(model, step)  # the rerun: same geometry, exported now
+    os.utime(step, (1e9, 2e9))  # and a modification time of its own: not looked at
+    assert step.read_bytes() == first
+    (a,) = trace.walk(db, pid).artifacts
+    assert a.state is trace.ArtifactState.OK, a.message
+    write_step(make_general_hinge(GeneralHingeParams(clearance_mm=0.2)), step)  # another geometry
+    (a,) = trace.walk(db, pid).artifacts
+    assert a.state is trace.ArtifactState.CHANGED
+    assert "has changed since it was recorded" in a.message
+    assert not list(step.parent.glob(".*tmp*"))  # no temporary file left behind

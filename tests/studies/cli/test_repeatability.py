@@ -62,6 +62,7 @@ def test_example_two_hinges_with_eta(tmp_path, capsys):
         "histogram_general.png",
         "histogram_modified.png",
         "eta_theta.png",
+        "commands.jsonl",  # the command line, for hingelab report
     }
     general = doc["hinges"][0]
     theta = math.asin(6 * _example_sigma_mm("general") / 25.0)

@@ -14,6 +14,8 @@ from __future__ import annotations
 import base64
 import io
 import json
+import os
+import shlex
 import shutil
 import subprocess
 from html.parser import HTMLParser
@@ -461,3 +463,53 @@ def test_report_of_a_real_coarse_cycle(chromium, tmp_path):
     assert {"hinge.step", "mesh.vtu", "loop.csv", "fields/cycle.pvd"} <= set(page.hrefs)
     # the loop picture follows the "what was run" table and the headline numbers
     render_and_check(chromium, out, tmp_path, region=(950, 1350, 120, 780))
+
+
+def _row(html_text: str, name: str) -> str:
+    """The value of the row ``name`` of the page's "What was run" table, as text."""
+    import html
+    import re
+
+    m = re.search(rf"<tr><th>{re.escape(name)}</th><td[^>]*>(.*?)</td></tr>", html_text, re.S)
+    assert m, f"no row {name!r}"
+    return html.unescape(re.sub(r"<[^>]+>", "", m.group(1)))
+
+
+REPEATABILITY = Path(__file__).parents[3] / "validation" / "data" / "repeatability_example.csv"
+
+
+def test_report_of_a_repeatability_folder(tmp_path, capsys):
+    """The README's repeatability command makes a folder the report renders (it refused it)."""
+    out = tmp_path / "rep"
+    argv = ["repeatability", str(REPEATABILITY), "--length-mm", "25", "--out", str(out)]
+    argv += ["--eta", "general=0.0659,modified=0.0160"]
+    assert main(argv) == 0
+    assert main(["report", str(out)]) == 0
+    page = check_structure(out / "report.html")
+    doc = json.loads((out / "repeatability.json").read_text())
+    text = " ".join(page.text)
+    assert "Repeatability" in text
+    for h in doc["hinges"]:  # θ and σ of each hinge, as the analysis wrote them
+        assert f"{h['theta_rad']:.4g}" in text
+        assert f"{h['sigma_um']:.4g}" in text
+    assert len(page.imgs) == 3  # two histograms and η–θ
+    html_text = (out / "report.html").read_text(encoding="utf-8")
+    assert _row(html_text, "command") == shlex.join(["hingelab", *argv])
+
+
+def test_the_command_row_is_the_command_line_that_ran(jenkins, tmp_path, capsys):
+    model = tmp_path / "MODEL.toml"
+    model.write_text('[hinge]\nkind = "jenkins_pin"\n[cycle]\nincrements_per_stage = 8\n')
+    out = tmp_path / "my cycle"  # a space: the row must quote it as a shell would
+    argv = ["cycle", "--model", str(model), "--amplitude", "300", "--out", str(out)]
+    assert main(argv) == 0
+    refused = tmp_path / "refused"
+    refused.mkdir()
+    assert main([*argv[:-1], str(refused), "--mu", "-1"]) == 1
+    assert list(refused.iterdir()) == []  # a command refused before any work records nothing
+    assert main(["report", str(out)]) == 0
+    html_text = (out / "report.html").read_text(encoding="utf-8")
+    assert _row(html_text, "command") == shlex.join(["hingelab", *argv])
+    assert "'" + str(out) + "'" in _row(html_text, "command")
+    assert _row(html_text, "run in") == os.getcwd()
+    assert "exit status 0" in _row(html_text, "ended")

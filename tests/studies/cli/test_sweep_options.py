@@ -74,7 +74,8 @@ def test_bearing_sweep_is_preload_by_amplitude_and_resumes(tmp_path, capsys):
     # the preload stiffens the hinge
     k = {float(r["preload_N"]): float(r["secant_stiffness_N_per_mm"]) for r in rows}
     assert k[100.0] > 1.3 * k[0.0]
-    assert sorted(p.name for p in (tmp_path / "points").iterdir()) == ["p0_F300", "p100_F300"]
+    labels = sorted(p.name.rsplit("-", 1)[0] for p in (tmp_path / "points").iterdir())
+    assert labels == ["p0_F300", "p100_F300"]  # each folder: label-<result key>
     capsys.readouterr()
     assert main(argv) == 0  # a rerun computes nothing
     import json
