@@ -62,6 +62,7 @@ class ResultStore:
             "timings_s": result.timings_s,
             "slides": list(result.slides),
             "start_disp_mm": result.start_disp_mm,
+            "cutbacks": [list(c) for c in result.cutbacks],
         }
         arrays = {
             "meta": np.array(json.dumps(meta)),
@@ -145,4 +146,5 @@ class ResultStore:
             ball_coordinates=balls,
             slides=tuple(int(k) for k in meta.get("slides", ())),
             start_disp_mm=float(meta.get("start_disp_mm", 0.0)),
+            cutbacks=tuple((int(k), int(n)) for k, n in meta.get("cutbacks", ())),
         )

@@ -59,6 +59,7 @@ from studies.options import params_with
 from studies.sweep_points import point_record, sweep_service
 
 if TYPE_CHECKING:
+    from model.service import ModelService
     from model.spec import DesignPoint, ModelSpec
 
 logger = logging.getLogger(__name__)
@@ -87,6 +88,10 @@ class SweepSettings:
         hinge: A registered hinge kind (``fe.kinds``), when no ``model``.
         hinge_options: Parameter overrides of that default hinge, as (field, value) pairs
             (e.g. the bearing hinge's ``interfaces``).
+        check_increments: After the points, run the clearance point of the largest
+            amplitude at doubled clearance increments and warn if η moved by more than
+            ``studies.convergence.DOUBLED_TOL`` (one extra cycle at twice the increments;
+            measured cost on the coarse mesh: 0.8 s at 120 increments, after 0.4 s at 60).
     """
 
     levels: tuple[float, ...] | None = None
@@ -102,6 +107,7 @@ class SweepSettings:
     scheduler: str | None = None
     hinge: str = DEFAULT_KIND
     hinge_options: tuple[tuple[str, Any], ...] = ()
+    check_increments: bool = True
 
     def __post_init__(self) -> None:
         if not self.points and (not self.grid_levels() or not self.amplitudes_n):
@@ -267,6 +273,11 @@ class SweepOutcome:
         table: The table of this run's ok points (input of ``hingelab rsm fit``).
         wall_s: Wall time [s].
         cached: Points read back from the result store (finished by an interrupted run).
+        warnings: Convergence warnings: the doubled-increments check
+            (``studies.convergence``) where it failed; the points' own findings are in
+            their records.
+        check: The doubled-increments check as plain data (also ``convergence.json``),
+            or None where no point has clearance.
     """
 
     ok: int
@@ -276,6 +287,8 @@ class SweepOutcome:
     table: Path
     wall_s: float
     cached: int = 0
+    warnings: tuple[str, ...] = ()
+    check: dict[str, Any] | None = None
 
 
 def run_sweep(
@@ -341,6 +354,7 @@ def run_sweep(
     from model.spec import geometry_key
 
     n_geo = len({geometry_key(spec, p) for p in todo})
+    service: ModelService | None = None
     if settings.scheduler is not None and todo:
         from studies.sweep_dask import run_on_scheduler
 
@@ -356,6 +370,8 @@ def run_sweep(
     table = out / "table.csv"
     if counts["ok"] + skipped:  # this run's points only (failed ones are left out by status)
         trace.export_table(db, table, study=settings.study, point_ids=ids)
+    check = increments_check(settings, out, service) if settings.check_increments else None
+    warnings = () if check is None or check["converged"] else (str(check["message"]),)
     return SweepOutcome(
         counts["ok"] - counts["cached"],
         counts["failed"],
@@ -364,4 +380,35 @@ def run_sweep(
         table,
         time.perf_counter() - t0,
         counts["cached"],
+        warnings,
+        check,
     )
+
+
+def increments_check(
+    settings: SweepSettings, out: Path, service: ModelService | None = None
+) -> dict[str, Any] | None:
+    """Run the sweep's clearance point of the largest amplitude at doubled increments.
+
+    The point's own result is read from ``out/results`` (every finished point is stored
+    there, whichever way it ran); the doubled run is stored there too, by its own key, so
+    a rerun does not repeat it. Written to ``out/convergence.json``; None (and no file)
+    where no finished point has clearance. ``service``: the in-process sweep's service,
+    whose last geometry (usually the checked point's) is still prepared.
+    """
+    from model.jsonio import dumps
+    from model.spec import result_key
+    from model.store import ResultStore
+    from studies.convergence import check_point, doubled_check
+
+    spec = settings.spec()
+    store = ResultStore(out / "results")
+    done = [(p, store.get(result_key(spec, p))) for p in settings.design_points()]
+    finished = [(p, r) for p, r in done if r is not None]
+    k = check_point(finished)
+    if k is None:
+        return None
+    point, result = finished[k]
+    rec = doubled_check(service or sweep_service(out), spec, point, result).record()
+    (out / "convergence.json").write_text(dumps(rec))
+    return rec

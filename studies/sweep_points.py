@@ -6,6 +6,7 @@ Shared by the in-process sweep (``studies.sweep``) and its Dask workers
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
@@ -15,6 +16,8 @@ if TYPE_CHECKING:
     from model.service import ModelService, PointRun, Prepared
     from model.spec import DesignPoint, ModelSpec
     from studies.sweep import SweepSettings
+
+logger = logging.getLogger(__name__)
 
 
 def point_params(spec: ModelSpec, p: DesignPoint) -> dict[str, float]:
@@ -66,6 +69,7 @@ def point_record(
     """
     from fe.cycle.loop_files import write_loop_csv, write_loop_png
     from model.jsonio import dumps, strict_json
+    from studies.convergence import warning_lines
 
     if lu_threads is None:
         from fe.contact import newton
@@ -113,10 +117,15 @@ def point_record(
         rec["results"] = strict_json(
             {k: v for k, v in result.metrics().items() if isinstance(v, float)}
         ) | {"wall_s": run.wall_s}
+        warnings = warning_lines(result)
+        for line in warnings:
+            logger.warning("%s: %s", point_label(spec, p), line)
         rec["convergence"] = strict_json(
             {
                 "increments": len(result.increments),
                 "iterations": [i.iterations for i in result.increments],
+                "cutbacks": result.n_cutbacks,
+                "warnings": warnings,
                 "timings_s": result.timings_s,
             }
         )

@@ -7,7 +7,7 @@ A kind of hinge describes its increment as a ``CycleStep``; ``drive`` runs the p
         for each target F of step.targets(F_from, F_to, n):
             record every (Increment, state) that step.advance(target, partial) yields
             progress(targets done, targets in the cycle)
-    return step.result(increments, states, timings)
+    return step.result(increments, states, timings) + the recovered cut-backs
 
 ``partial()`` builds the result of the increments recorded so far; a step hands it to
 ``fe.cycle.protocol.with_cutbacks``, which attaches it to the ``ConvergenceError`` raised
@@ -16,6 +16,8 @@ when an increment fails after its cut-backs.
 
 from __future__ import annotations
 
+import dataclasses
+import logging
 import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
@@ -25,8 +27,10 @@ import numpy as np
 import numpy.typing as npt
 
 from fe.contact.state import ContactState
-from fe.cycle.protocol import CycleSettings
+from fe.cycle.protocol import Cutback, CycleSettings, counting_cutbacks
 from fe.cycle.result import CycleResult, Increment
+
+logger = logging.getLogger(__name__)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -111,11 +115,13 @@ def drive(
         phase: The key of the cycle's own wall time in ``CycleResult.timings_s``.
 
     Returns:
-        ``step.result`` of every recorded increment, timings ``{**timings_s, phase: t}``.
+        ``step.result`` of every recorded increment, timings ``{**timings_s, phase: t}``,
+        and the increments recovered by cut-backs (``CycleResult.cutbacks``, counted by
+        ``fe.cycle.protocol.counting_cutbacks``; one INFO line sums them up).
 
     Raises:
         ConvergenceError: As ``step.advance``; its ``partial`` holds the increments
-            recorded before the failure.
+            recorded before the failure (and the cut-backs recovered before it).
     """
     before = dict(timings_s or {})
     plan = [step.targets(f_from, f_to, n) for f_from, f_to, n in settings.stages()]
@@ -123,19 +129,35 @@ def drive(
     increments: list[Increment] = []
     states: list[ContactState] = []
 
-    def partial() -> CycleResult:
-        return step.result(tuple(increments), tuple(states), dict(before))
+    with counting_cutbacks() as cutbacks:
 
-    t0 = time.perf_counter()
-    done, f_prev = 0, 0.0
-    for stage, targets in enumerate(plan):
-        for k, f in enumerate(targets):
-            target = Target(stage, f_prev, float(f), len(increments), k == 0)
-            for increment, state in step.advance(target, partial):
-                increments.append(increment)
-                states.append(state)
-            f_prev, done = float(f), done + 1
-            if progress is not None:
-                progress(done, total)
-    timings = {**before, phase: time.perf_counter() - t0}
-    return step.result(tuple(increments), tuple(states), timings)
+        def partial() -> CycleResult:
+            result = step.result(tuple(increments), tuple(states), dict(before))
+            return with_counted(result, cutbacks)
+
+        t0 = time.perf_counter()
+        done, f_prev = 0, 0.0
+        for stage, targets in enumerate(plan):
+            for k, f in enumerate(targets):
+                target = Target(stage, f_prev, float(f), len(increments), k == 0)
+                for increment, state in step.advance(target, partial):
+                    increments.append(increment)
+                    states.append(state)
+                f_prev, done = float(f), done + 1
+                if progress is not None:
+                    progress(done, total)
+        timings = {**before, phase: time.perf_counter() - t0}
+        result = with_counted(step.result(tuple(increments), tuple(states), timings), cutbacks)
+    if cutbacks:
+        logger.info(
+            "%d increments of %d converged only after cut-backs (%d halvings in all)",
+            len(cutbacks), len(increments), result.n_cutbacks,
+        )  # fmt: skip
+    return result
+
+
+def with_counted(result: CycleResult, cutbacks: list[Cutback]) -> CycleResult:
+    """``result`` with the recovered cut-backs of its cycle added to its own (a step may count some)."""
+    if not cutbacks:
+        return result
+    return dataclasses.replace(result, cutbacks=(*result.cutbacks, *cutbacks))

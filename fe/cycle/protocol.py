@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import TypeVar
 
@@ -97,6 +99,29 @@ def stage_targets(f_from: float, f_to: float, n: int, grading: float) -> FloatAr
     return f_from + (f_to - f_from) * s
 
 
+Cutback = tuple[int, int]
+"""One increment recovered by cut-backs: (increment index, halvings it needed)."""
+
+_TALLY: ContextVar[list[Cutback] | None] = ContextVar("cutback_tally", default=None)
+
+
+@contextmanager
+def counting_cutbacks() -> Iterator[list[Cutback]]:
+    """Collect the cut-backs ``with_cutbacks`` recovers inside the block, in order.
+
+    ``fe.cycle.driver.drive`` wraps a cycle in it, so every step that cuts back through
+    ``with_cutbacks`` is counted without passing a counter through it. The list is filled
+    as increments recover; a nested block has its own list (a context variable, so a
+    thread or a Dask task counts only its own cycle).
+    """
+    tally: list[Cutback] = []
+    token = _TALLY.set(tally)
+    try:
+        yield tally
+    finally:
+        _TALLY.reset(token)
+
+
 def with_cutbacks(
     attempt: Callable[[int], T],
     max_cutbacks: int,
@@ -106,6 +131,11 @@ def with_cutbacks(
     partial: Callable[[], object],
 ) -> T:
     """Run ``attempt(n_sub)`` with n_sub = 1, 2, 4, … sub-steps until one converges.
+
+    A failed attempt and a recovery are logged at INFO (``-v``), not as warnings: a
+    recovered increment is a correct increment. They are counted instead
+    (``counting_cutbacks``), and the cycle's summary says what to change when there were
+    many (``fe.cycle.checks``).
 
     Args:
         attempt: Solves the increment in ``n_sub`` equal sub-steps; raises ConvergenceError.
@@ -124,10 +154,13 @@ def with_cutbacks(
             out = attempt(2**level)
         except ConvergenceError as err:
             last = err
-            logger.warning("%s failed, cutting back: %s", what, err)
+            logger.info("%s failed, cutting back: %s", what, err)
             continue
         if level:
             logger.info("increment %d converged after %d cut-backs", increment, level)
+            tally = _TALLY.get()
+            if tally is not None:
+                tally.append((increment, level))
         return out
     assert last is not None
     raise ConvergenceError(

@@ -92,6 +92,9 @@ class CycleResult:
         start_disp_mm: δ of the unloaded start in the tension configuration's
             coordinates [mm]: 0 (the pin pushed there at zero force) or −2Δr (the pin
             centred, ``fe.general.freeplay``).
+        cutbacks: The increments that converged only after cut-backs, as (increment
+            index, halvings) in order (``fe.cycle.driver.drive`` counts them); empty when
+            every increment converged at its full size.
     """
 
     settings: CycleSettings
@@ -105,6 +108,12 @@ class CycleResult:
     ball_coordinates: FloatArray | None = field(default=None, repr=False)
     slides: tuple[int, ...] = ()
     start_disp_mm: float = 0.0
+    cutbacks: tuple[tuple[int, int], ...] = ()
+
+    @property
+    def n_cutbacks(self) -> int:
+        """Cut-backs (halvings of a failed increment) that recovered, over the whole cycle."""
+        return sum(level for _, level in self.cutbacks)
 
     @property
     def faces_slide(self) -> bool:

@@ -85,11 +85,26 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.set_defaults(func=run)
 
 
+RUN_FILES = ("loop.csv", "loop.png", "result.json", "loop_partial.csv")
+"""The files of one run in ``--out``; a new run removes an earlier run's before it writes."""
+
+
 def run(args: argparse.Namespace) -> int:
-    """Run ``hingelab cycle``."""
-    from fe.cycle.loop_files import write_loop_csv, write_loop_png
+    """Run ``hingelab cycle``.
+
+    The cycle is not stored between runs: an interrupted or failed cycle is recomputed by
+    the next run (there is no state to resume from; a sweep keeps finished points). So
+    the folder never mixes runs: before this run writes anything, an earlier run's
+    files (``RUN_FILES``) are removed; a failed cycle leaves ``loop_partial.csv`` (its
+    converged increments), a complete one ``loop.csv``, ``loop.png``, the fields and
+    ``result.json``, written last; if the writing is interrupted, the files written so
+    far are removed again.
+    """
+    from cad.errors import ConvergenceError
+    from fe.cycle.loop_files import write_loop_csv
+    from fe.cycle.result import CycleResult
     from model.service import ModelService
-    from model.spec import DesignPoint, describe_point, hinge_at, resolve_structural
+    from model.spec import DesignPoint
 
     t0 = time.perf_counter()
     if args.frames < 0:
@@ -99,22 +114,97 @@ def run(args: argparse.Namespace) -> int:
     except ParameterError as err:
         raise with_option(err) from err
     check_writable_dir(args.out, "--out")  # before any work; a kind without a mesh writes none
-    kind = spec.hinge_kind
     point = DesignPoint(spec.cycle.amplitude_n)  # the model's own design values
     service = ModelService(geometry_dir=lambda _label: args.out)
-    prepared = service.prepare(spec, point)
-    bar = _progress_bar(args)
-    # effects act on the condensed system; the progress bar is not threaded through them
-    result = service.run_point(
-        spec, point, progress=None if bar is None or spec.effects else bar.update_to
-    )
-    if bar is not None:
-        bar.close()
+    try:
+        prepared = service.prepare(spec, point)
+        bar = _progress_bar(args)
+        # effects act on the condensed system; the progress bar is not threaded through them
+        try:
+            result = service.run_point(
+                spec, point, progress=None if bar is None or spec.effects else bar.update_to
+            )
+        finally:
+            if bar is not None:
+                bar.close()
+    except ConvergenceError as err:
+        if isinstance(err.partial, CycleResult) and err.partial.increments:
+            _clear(args.out)
+            path = write_loop_csv(err.partial, args.out / "loop_partial.csv")
+            n = len(err.partial.increments)
+            print(f"hingelab cycle: the {n} converged increments are in {path}", file=sys.stderr)
+        raise
+    except KeyboardInterrupt:
+        return _interrupted(
+            "nothing of the cycle is kept (it is not stored between runs); "
+            "rerun the same command to recompute it"
+        )
+    written: list[Path] = []
+    try:
+        summary = _write_files(args, spec, point, prepared, result, written, t0)
+    except BaseException as err:  # interrupted or failed: no loop.csv without result.json
+        for path in written:
+            path.unlink(missing_ok=True)
+        if isinstance(err, KeyboardInterrupt):
+            return _interrupted(
+                "the cycle had finished, but its files were not all written and are removed "
+                "(it is not stored between runs); rerun the same command to recompute it"
+            )
+        raise
+    for line in summary["warnings"]:
+        print(f"hingelab cycle: warning: {line}", file=sys.stderr)
+    if args.json:
+        print(dumps(summary))
+    else:
+        kind = spec.hinge_kind
+        cut = f"   {summary['cutbacks']} cut-backs" if summary["cutbacks"] else ""
+        print(f"{kind.headline(summary)}{cut}   {summary['wall_s']:.1f} s")
+        names = ["loop.csv", "loop.png", "result.json"]
+        names += ["fields/"] if "pvd" in summary["files"] else []
+        names += ["mesh files"] if prepared.meshed is not None else []
+        print(f"results in {args.out}/ ({', '.join(names)})")
+    return 0
+
+
+def _interrupted(what: str) -> int:
+    """Say what an interrupted ``cycle`` kept, on stderr; return the exit status 130."""
+    print(f"hingelab cycle: interrupted; {what}", file=sys.stderr)
+    return 130
+
+
+def _clear(out: Path) -> None:
+    """Remove an earlier run's files (``RUN_FILES``) from ``out``."""
+    for name in RUN_FILES:
+        (out / name).unlink(missing_ok=True)
+
+
+def _write_files(
+    args: argparse.Namespace,
+    spec: Any,
+    point: Any,
+    prepared: Any,
+    result: Any,
+    written: list[Path],
+    t0: float,
+) -> dict[str, Any]:
+    """Write the loop, its plot, the fields and result.json (last); return the summary.
+
+    Every file is appended to ``written`` as it is made, so the caller can remove them
+    if the writing is interrupted.
+    """
+    from fe.cycle.loop_files import write_loop_csv, write_loop_png
+    from model.spec import describe_point, hinge_at, resolve_structural
+    from studies.convergence import warning_lines
+
+    kind = spec.hinge_kind
+    _clear(args.out)
     meshed = prepared.meshed
     files = {} if meshed is None else {k: str(v) for k, v in meshed.files.items()}
-    files["loop_csv"] = str(write_loop_csv(result, args.out / "loop.csv"))
+    written.append(write_loop_csv(result, args.out / "loop.csv"))
+    files["loop_csv"] = str(written[-1])
     title = describe_point(spec, point)
-    files["loop_png"] = str(write_loop_png(result, args.out / "loop.png", title=title))
+    written.append(write_loop_png(result, args.out / "loop.png", title=title))
+    files["loop_png"] = str(written[-1])
     if args.frames:
         pvd = kind.write_fields(prepared.built, result, args.out / "fields", args.frames)
         if pvd is not None:
@@ -124,16 +214,10 @@ def run(args: argparse.Namespace) -> int:
     own = kind.summary(prepared.built, hinge_at(resolve_structural(spec), point), result)
     timings = {**summary.pop("timings_s"), **own.pop("timings_s", {}), **result.timings_s}
     summary |= own | {"timings_s": timings, "wall_s": time.perf_counter() - t0}
-    (args.out / "result.json").write_text(dumps(summary))
-    if args.json:
-        print(dumps(summary))
-    else:
-        print(f"{kind.headline(summary)}   {summary['wall_s']:.1f} s")
-        written = ["loop.csv", "loop.png", "result.json"]
-        written += ["fields/"] if "pvd" in files else []
-        written += ["mesh files"] if meshed is not None else []
-        print(f"results in {args.out}/ ({', '.join(written)})")
-    return 0
+    summary |= {"cutbacks": result.n_cutbacks, "warnings": warning_lines(result)}
+    written.append(args.out / "result.json")
+    written[-1].write_text(dumps(summary))
+    return summary
 
 
 HINGE_OPTIONS = {

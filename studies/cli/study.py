@@ -208,6 +208,9 @@ def run(args: argparse.Namespace) -> int:
             not_fitted = f"surface not fitted: {err}"
     summary = _summary(study, outcome, fit, args)
     summary["surface_not_fitted"] = not_fitted
+    summary["increments_check"] = outcome.check
+    for line in outcome.warnings:  # the doubled-increments check (studies.convergence)
+        print(f"hingelab study: warning: {line}", file=sys.stderr)
     if args.json:
         print(dumps(summary))
     else:

@@ -167,7 +167,10 @@ def run(args: argparse.Namespace) -> int:
         "trace": str(outcome.db),
         "table": str(outcome.table),
         "wall_s": outcome.wall_s,
+        "increments_check": outcome.check,
     }
+    for line in outcome.warnings:  # the doubled-increments check (studies.convergence)
+        print(f"hingelab sweep: warning: {line}", file=sys.stderr)
     if args.json:
         print(dumps(summary))
     elif outcome.ok + outcome.cached + outcome.skipped == 0:

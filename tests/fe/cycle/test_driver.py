@@ -188,3 +188,62 @@ def test_a_step_is_not_driven_past_its_failure():
     assert err.value.increment == 0
     assert err.value.partial.increments == ()
     assert step.attempts == [1]
+
+
+class HardStep(SliderStep):
+    """The slider, whose targets in a force window converge only in ``needs`` sub-steps."""
+
+    def __init__(self, settings: CycleSettings, window: tuple[float, float], needs: int) -> None:
+        super().__init__(settings)
+        self.window, self.needs = window, needs
+        self.hard: list[int] = []
+
+    def advance(self, target: Target, partial: Callable[[], CycleResult]) -> Iterator[Recorded]:
+        lo, hi = self.window
+        if lo <= target.f_to <= hi:
+            self.hard.append(target.index)
+
+            def attempt(n_sub: int) -> None:
+                if n_sub < self.needs:
+                    raise ConvergenceError("too big", increment=target.index, iteration=9,
+                                           residual=1.0)  # fmt: skip
+
+            with_cutbacks(attempt, self.settings.max_cutbacks, increment=target.index,
+                          what="hard", partial=partial)  # fmt: skip
+        yield from super().advance(target, partial)
+
+
+def test_recovered_cutbacks_are_counted_and_logged_only_at_info(caplog):
+    """Two halvings per hard target (1 and 2 sub-steps fail, 4 converge): each is counted
+    by increment in the result, and nothing reaches WARNING (one line per cut-back)."""
+    s = settings()
+    step = HardStep(s, (-0.6 * F, -0.2 * F), needs=4)
+    with caplog.at_level("INFO", logger="fe.cycle"):
+        result = drive(step, s)
+    assert len(step.hard) >= 2
+    assert result.cutbacks == tuple((k, 2) for k in step.hard)
+    assert result.n_cutbacks == 2 * len(step.hard)
+    assert not [r for r in caplog.records if r.levelno >= 30]
+    info = [r.getMessage() for r in caplog.records if r.levelno == 20]
+    assert sum("cutting back" in m for m in info) == 2 * len(step.hard)
+    assert any(f"{len(step.hard)} increments of {len(result.increments)}" in m for m in info)
+    # the loop is that of the easy slider: cut-backs change the cost, not the result
+    assert result.metrics()["eta"] == pytest.approx(4 * FS / (math.pi * F), rel=1e-13)
+    assert drive(SliderStep(s), s).cutbacks == ()
+
+
+def test_a_failure_after_recovered_cutbacks_keeps_them_in_the_partial_loop():
+    s = settings(max_cutbacks=3)
+
+    class Failing(HardStep):
+        def advance(self, target, partial):
+            if target.f_to < -0.8 * F:
+                raise ConvergenceError("stop", increment=target.index, iteration=4, residual=2.0,
+                                       partial=partial())  # fmt: skip
+            yield from super().advance(target, partial)
+
+    step = Failing(s, (-0.79 * F, 0.5 * F), needs=2)
+    with pytest.raises(ConvergenceError, match=r"iteration 4, residual 2\.000e\+00") as err:
+        drive(step, s)
+    assert err.value.partial.cutbacks == tuple((k, 1) for k in step.hard)
+    assert len(step.hard) >= 2
