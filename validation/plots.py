@@ -17,7 +17,8 @@ from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from fe.kinds import hinge_kind
 from model.paths import file_stem, inside
-from validation.compare import METRIC_LABELS, METRICS, CaseComparison, Comparison, group_name
+from validation.compare import METRIC_LABELS, METRICS, CaseComparison, Comparison
+from validation.fingerprint import group_name
 from validation.loops import branch_residuals
 
 UM_PER_MM = 1e3
