@@ -338,7 +338,7 @@ def judge(
         ok = math.isfinite(err) and abs(err) <= k * sig
         return Judgement(Status.PASS if ok else Status.FAIL, True, err, sig, **base)
     if abs(v) <= k * sigma_noise_abs:
-        why = f"|{name}| {_g(v)} ≤ {k:g}σ of the record's noise ({_g(k * sigma_noise_abs)})"
+        why = f"{name} = {_g(v)} lies within {k:g}σ of zero for the record's noise ({_g(k * sigma_noise_abs)})"
     else:
         why = (
             f"its σ {_g(sigma_abs)} (noise {_g(sigma_noise_abs)} ⊕ model floor) exceeds its "
