@@ -4,7 +4,10 @@ For every case both loops go through ``validation.loops.process_loop`` (same off
 stages, closing rule), then five errors are formed (``METRICS``):
 
 * ``disp_at_peak_mm``, ``W_cycle_Nmm``, ``eta``, ``secant_stiffness_N_per_mm``: the
-  relative error ``(model − measured) / |measured|``;
+  relative error ``(model − measured) / |measured|``; with clearance W and η are those of
+  the loop **without the free play** (``validation.hysteresis``: the zero-force crossings
+  cut out of both loops at the same forces), whose area the force noise during the
+  crossing no longer swamps;
 * ``rms_loop``: the RMS loop distance (``validation.loops.loop_distance``) divided by the
   measured δ_max, so it too is a fraction (≥ 0).
 
@@ -30,12 +33,16 @@ compare, and the reverse:
 otherwise demand an exact model).
 
 A case **passes** when every available error satisfies ``|e| ≤ k σ`` (k = 2 by default:
-about 95 % coverage for a normal error). η-only cases have only the η error.
+about 95 % coverage for a normal error). η-only cases have only the η error. W and η are
+judged by ``validation.hysteresis.judge``: on their relative error only where the record
+measures them (``|v| > k σ_noise`` and σ ≤ ``FeatureSettings.max_rel_sigma`` · |v|);
+elsewhere they are **not measurable** (neither pass nor fail, the reason in
+``CaseComparison.not_measurable``), unless the model lies beyond k σ of the record in
+absolute terms (a fail without a relative error). A relative σ on a near-zero hysteresis
+(μ = 0, or a clearance loop's area under the model floor) is never formed.
 
-The **fingerprint** fits ``log W = a + s_W log Fg`` and ``log η = b + s_η log Fg`` for each
-group of cases that differ only in amplitude, for the measured and the model values. A
-positively homogeneous model (Coulomb friction, linear elasticity, zero clearance) has
-s_W = 2 and s_η = 0 exactly; measured slopes that differ point to the missing physics.
+The **fingerprint** (``validation.fingerprint``) fits the log–log slopes of W and η against
+the amplitude per group of cases that differ only in amplitude.
 """
 
 from __future__ import annotations
@@ -52,8 +59,18 @@ import numpy as np
 from cad.errors import DataError, check_range
 from fe.kinds import hinge_kind
 from validation.features import FeatureSettings, feature_sigma, loop_features
+from validation.fingerprint import FingerprintFit, fingerprint
+from validation.hysteresis import (
+    HYSTERESIS_METRICS,
+    Hysteresis,
+    Judgement,
+    Status,
+    hysteresis,
+    judge,
+    judge_loops,
+)
 from validation.loop_files import Loop
-from validation.loops import ProcessedLoop, loop_distance, noise_level, process_loop
+from validation.loops import ProcessedLoop, loop_distance, noise_level, process_loop, zero_band_n
 from validation.measurements import Case, MeasurementSet
 
 METRICS = ("disp_at_peak_mm", "W_cycle_Nmm", "eta", "secant_stiffness_N_per_mm", "rms_loop")
@@ -127,13 +144,18 @@ class CaseComparison:
         case: The measured case.
         measured: Measured metrics (``LoopMetrics`` names; only ``eta`` for η-only cases).
         model: Model metrics, measured on the model loop the same way.
-        errors: Metric → error (relative; see the module docstring).
-        uncertainty: Metric → relative σ used.
+        errors: Metric → error (relative; see the module docstring); W and η only where
+            judged on their relative error.
+        uncertainty: Metric → relative σ used (as ``errors``).
         uncertainty_source: ``"replicates (n=…)"`` or ``"stated"``.
-        failed: Metrics with |error| > k σ.
+        failed: Metrics with |error| > k σ (or, not measurable relatively, a model beyond
+            k σ of the record).
         rms_loop_mm: RMS loop distance [mm], or None for an η-only case.
         measured_loop: The processed measured loop, or None.
         model_loop: The processed model loop.
+        judgements: W and η (η only for an η-only case) as ``validation.hysteresis.judge``
+            judged them.
+        free_play_removed: True when W and η are those of the loop without the free play.
     """
 
     case: Case
@@ -146,32 +168,20 @@ class CaseComparison:
     rms_loop_mm: float | None
     measured_loop: ProcessedLoop | None = field(repr=False, compare=False)
     model_loop: ProcessedLoop = field(repr=False, compare=False)
+    judgements: dict[str, Judgement] = field(default_factory=dict, repr=False)
+    free_play_removed: bool = False
 
     @property
     def passed(self) -> bool:
         """True when every error is within k σ."""
         return not self.failed
 
-
-@dataclass(frozen=True)
-class FingerprintFit:
-    """Log–log slopes of W and η against amplitude for one group of cases.
-
-    Attributes:
-        group: Label of the group (what is held fixed).
-        amplitudes_n: The amplitudes fitted [N].
-        slope_W_measured: d log W / d log Fg of the measurements (NaN for η-only data).
-        slope_W_model: Same for the model.
-        slope_eta_measured: d log η / d log Fg of the measurements.
-        slope_eta_model: Same for the model.
-    """
-
-    group: str
-    amplitudes_n: tuple[float, ...]
-    slope_W_measured: float
-    slope_W_model: float
-    slope_eta_measured: float
-    slope_eta_model: float
+    @property
+    def not_measurable(self) -> dict[str, str]:
+        """Metric → why the record does not measure it (neither pass nor fail)."""
+        return {
+            m: j.reason for m, j in self.judgements.items() if j.status is Status.NOT_MEASURABLE
+        }
 
 
 @dataclass(frozen=True)
@@ -220,6 +230,9 @@ class Comparison:
                     "source": None if c.case.loop is None else c.case.loop.source,
                     "passed": c.passed,
                     "failed": list(c.failed),
+                    "not_measurable": c.not_measurable,
+                    "free_play_removed": c.free_play_removed,
+                    "judged": {m: j.as_dict() for m, j in c.judgements.items()},
                     "errors": c.errors,
                     "uncertainty": c.uncertainty,
                     "uncertainty_source": c.uncertainty_source,
@@ -231,6 +244,12 @@ class Comparison:
             ],
             "fingerprint": [vars(f) for f in self.fingerprint],
         }
+
+
+def _hyst(p: ProcessedLoop, case: Case) -> Hysteresis:
+    """W, δ_max and η of a replicate's loop, without the free play for a case with clearance."""
+    band = zero_band_n(p, p)
+    return hysteresis(p, band, remove_free_play=case.values.get("clearance_mm", 0.0) > 0.0)
 
 
 def _processed(case: Case) -> ProcessedLoop | None:
@@ -247,9 +266,11 @@ def _replicate_sigma(
     processed = [loops[i] for i in ids]
     if all(p is not None for p in processed):
         ps = [p for p in processed if p is not None]
+        hs = [_hyst(p, cases[i]) for p, i in zip(ps, ids, strict=True)]
+        judged = {"W_cycle_Nmm": [h.W_Nmm for h in hs], "eta": [h.eta for h in hs]}
         for m in _LOOP_METRICS:
-            v = np.array([getattr(p.metrics, m) for p in ps])
-            sigma[m] = float(np.std(v, ddof=1) / abs(np.mean(v)))
+            v = np.array(judged.get(m) or [getattr(p.metrics, m) for p in ps])
+            sigma[m] = _ratio(float(np.std(v, ddof=1)), float(np.mean(v)))
         d2 = [loop_distance(a, b) ** 2 for a, b in combinations(ps, 2)]
         delta = float(np.mean([p.metrics.delta_max_mm for p in ps]))
         sigma["rms_loop"] = math.sqrt(float(np.mean(d2)) / 2) / delta
@@ -257,23 +278,22 @@ def _replicate_sigma(
         etas = [cases[i].eta for i in ids]
         if all(e is not None for e in etas):
             v = np.array(etas, dtype=np.float64)
-            sigma["eta"] = float(np.std(v, ddof=1) / abs(np.mean(v)))
+            sigma["eta"] = _ratio(float(np.std(v, ddof=1)), float(np.mean(v)))
     return sigma
 
 
 def _record_sigma(
     meas: ProcessedLoop | None, case: Case, rep: Mapping[str, float], s: CompareSettings
 ) -> dict[str, float]:
-    """Relative σ per metric: noise of the record ⊕ model floor ⊕ replicates (as diagnose)."""
+    """Relative σ of δ(+Fg), k_sec and the loop distance: noise ⊕ floor ⊕ replicates (as diagnose).
+
+    W and η are judged on their own (``_judge_hysteresis``).
+    """
     f = s.features
     if meas is None:
-        eta = abs(float(case.eta or 0.0))
-        floor = f.rel_floor + f.eta_floor / max(eta, 1e-300)
-        return {"eta": math.sqrt(f.eta_rel_sigma**2 + floor**2 + rep.get("eta", 0.0) ** 2)}
+        return {}
     sig = feature_sigma([meas], f, None)  # absolute: δ_max, W, opening (noise ⊕ floor)
-    feats = loop_features(meas)
-    r_delta = _ratio(sig[0], feats[0])
-    r_W = _ratio(sig[1], feats[1])
+    r_delta = _ratio(sig[0], loop_features(meas)[0])
     m = meas.metrics
     peak = max(abs(m.disp_at_peak_mm), 1e-300)
     # δ(+Fg) is one sample (δ_max averages two peaks): its full displacement noise counts
@@ -283,8 +303,6 @@ def _record_sigma(
     )
     base = {
         "disp_at_peak_mm": _ratio(math.hypot(s_peak, f.rel_floor * m.delta_max_mm), peak),
-        "W_cycle_Nmm": r_W,
-        "eta": math.hypot(r_W, r_delta),
         "secant_stiffness_N_per_mm": r_delta,
         "rms_loop": s.default_rel_uncertainty if "rms_loop" not in rep else 0.0,
     }
@@ -373,14 +391,77 @@ def compare(
             source = f"record ⊕ floor{' ⊕ ' + source if rep else ''}"
         else:
             unc = {m: rep.get(m, s.default_rel_uncertainty) for m in errors}
-        unc = {m: max(unc[m], s.min_rel_uncertainty) for m in errors}
-        failed = tuple(m for m in METRICS if m in errors and not _within(errors[m], s.k * unc[m]))
+        unc = {m: max(unc.get(m, math.inf), s.min_rel_uncertainty) for m in errors}
+        judged, removed = _judge_hysteresis(loops[cid], case, model, rep, s, mea, mod)
+        for m, j in judged.items():
+            errors.pop(m, None)
+            unc.pop(m, None)
+            if j.relative and j.error is not None and j.sigma is not None:
+                errors[m], unc[m] = j.error, j.sigma
+        failed = tuple(
+            m
+            for m in METRICS
+            if (m in judged and judged[m].status is Status.FAIL)
+            or (m not in judged and m in errors and not _within(errors[m], s.k * unc[m]))
+        )
         mod_all = {**mod, **{f"fe_{k}": float(v) for k, v in res.metrics.items()}}
         out.append(
-            CaseComparison(case, mea, mod_all, errors, unc, source, failed, rms, loops[cid], model)
+            CaseComparison(
+                case,
+                mea,
+                mod_all,
+                errors,
+                unc,
+                source,
+                failed,
+                rms,
+                loops[cid],
+                model,
+                judged,
+                removed,
+            )
         )
     cases = tuple(out)
     return Comparison(cases, s, _summary(cases), fingerprint(cases))
+
+
+def _judge_hysteresis(
+    meas: ProcessedLoop | None,
+    case: Case,
+    model: ProcessedLoop,
+    rep: Mapping[str, float],
+    s: CompareSettings,
+    mea: dict[str, float],
+    mod: dict[str, float],
+) -> tuple[dict[str, Judgement], bool]:
+    """Judge W and η (``validation.hysteresis.judge``); add the free-play-free values to mea/mod.
+
+    Returns:
+        (metric → judgement, True when the free play was taken out).
+    """
+    f = s.features
+    k = {"k": s.k, "max_rel_sigma": f.max_rel_sigma, "min_rel_sigma": s.min_rel_uncertainty}
+    if meas is None:  # a stated η: its uncertainty ⊕ the floor ⊕ replicates
+        v = abs(float(case.eta or 0.0))
+        if s.uncertainty is Uncertainty.RECORD:
+            floor = f.rel_floor * v + f.eta_floor
+            sig = math.hypot(f.eta_rel_sigma * v, rep.get("eta", 0.0) * v, floor)
+        else:
+            sig = rep.get("eta", s.default_rel_uncertainty) * v
+        eta = float(case.eta or 0.0)
+        return {"eta": judge(eta, mod["eta"], sig, f.eta_rel_sigma * v, name="η", **k)}, False
+    removed = case.values.get("clearance_mm", 0.0) > 0.0
+    stated = s.default_rel_uncertainty if s.uncertainty is Uncertainty.STATED else None
+    out, hm, hmod = judge_loops(
+        meas, model, removed, dict(rep), f, stated, names=METRIC_LABELS, **k
+    )
+    if removed:
+        for side, h in ((mea, hm), (mod, hmod)):
+            side["W_without_free_play_Nmm"] = h.W_Nmm
+            side["delta_max_without_free_play_mm"] = h.delta_max_mm
+            side["eta_without_free_play"] = h.eta
+            side["free_play_travel_mm"] = h.free_play_mm
+    return out, removed
 
 
 def _summary(cases: tuple[CaseComparison, ...]) -> dict[str, Any]:
@@ -399,6 +480,11 @@ def _summary(cases: tuple[CaseComparison, ...]) -> dict[str, Any]:
             "worst_case": worst.case.case_id,
             "n_fail": sum(m in c.failed for c in have),
         }
+    for m in HYSTERESIS_METRICS:
+        n_nm = sum(m in c.not_measurable for c in cases)
+        if n_nm:
+            per_metric.setdefault(m, {"n": 0, "n_fail": sum(m in c.failed for c in cases)})
+            per_metric[m]["n_not_measurable"] = n_nm
     n_pass = sum(c.passed for c in cases)
     return {
         "n_cases": len(cases),
@@ -408,52 +494,7 @@ def _summary(cases: tuple[CaseComparison, ...]) -> dict[str, Any]:
     }
 
 
-def _slope(x: list[float], y: list[float]) -> float:
-    xa, ya = np.asarray(x), np.asarray(y)
-    ok = (xa > 0) & (ya > 0) & np.isfinite(ya)
-    if len(np.unique(xa[ok])) < 2:
-        return math.nan
-    return float(np.polyfit(np.log(xa[ok]), np.log(ya[ok]), 1)[0])
-
-
-def _values(members: list[CaseComparison], side: str, key: str) -> list[float]:
-    """One metric of one side ("measured" or "model") of each case; NaN where absent."""
-    return [getattr(c, side).get(key, math.nan) for c in members]
-
-
 def case_columns(case: Case) -> dict[str, float]:
     """The case's design values by their cases.csv columns (``clearance_mm``, ``preload_N``)."""
     columns = {v.name: v.column for v in hinge_kind(case.hinge).design_variables}
     return {columns[k]: v for k, v in case.values.items()}
-
-
-def group_name(case: Case) -> str:
-    """The case's design point without its amplitude, e.g. ``general, Δr = 0.1 mm``."""
-    return ", ".join(filter(None, [case.hinge, case.describe()]))
-
-
-def fingerprint(cases: tuple[CaseComparison, ...]) -> tuple[FingerprintFit, ...]:
-    """Fit log–log slopes of W and η against amplitude per design group (``group_name``).
-
-    Groups with fewer than two distinct amplitudes are skipped.
-    """
-    groups: dict[str, list[CaseComparison]] = {}
-    for c in cases:
-        groups.setdefault(group_name(c.case), []).append(c)
-    fits = []
-    for group, members in groups.items():
-        amps = [c.case.amplitude_n for c in members]
-        if len(set(amps)) < 2:
-            continue
-
-        fits.append(
-            FingerprintFit(
-                group=group,
-                amplitudes_n=tuple(sorted(set(amps))),
-                slope_W_measured=_slope(amps, _values(members, "measured", "W_cycle_Nmm")),
-                slope_W_model=_slope(amps, _values(members, "model", "W_cycle_Nmm")),
-                slope_eta_measured=_slope(amps, _values(members, "measured", "eta")),
-                slope_eta_model=_slope(amps, _values(members, "model", "eta")),
-            )
-        )
-    return tuple(fits)

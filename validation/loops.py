@@ -416,6 +416,17 @@ ZERO_BAND_FRACTION = 0.02
 """Least half-width of that band, as a fraction of F_max (a noise-free model loop)."""
 
 
+def zero_band_n(measured: ProcessedLoop, model: ProcessedLoop) -> float:
+    """Half-width of the band around F = 0 where the free play is crossed [N].
+
+    ``ZERO_BAND_NOISE`` measured force-noise σ, at least ``ZERO_BAND_FRACTION`` and at most
+    half of 0.98 × the smaller F_max.
+    """
+    f_c = 0.98 * min(measured.metrics.f_max_n, model.metrics.f_max_n)
+    noise = ZERO_BAND_NOISE * noise_level(measured.force_n)
+    return min(max(noise, ZERO_BAND_FRACTION * f_c), 0.5 * f_c)
+
+
 def branch_residuals(
     measured: ProcessedLoop, model: ProcessedLoop, n_grid: int = GRID_POINTS
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -434,9 +445,7 @@ def branch_residuals(
         (n_grid,) [mm], same on the ascending branch (n_grid,) [mm]).
     """
     f_c = 0.98 * min(measured.metrics.f_max_n, model.metrics.f_max_n)
-    band = min(
-        max(ZERO_BAND_NOISE * noise_level(measured.force_n), ZERO_BAND_FRACTION * f_c), 0.5 * f_c
-    )
+    band = zero_band_n(measured, model)
     half = np.linspace(band, f_c, n_grid // 2)
     grid = np.concatenate([-half[::-1], half])
     out = []

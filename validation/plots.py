@@ -7,21 +7,57 @@ are shown in µm (hinge loops span a few µm to a few tens of µm).
 from __future__ import annotations
 
 import math
+import textwrap
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from matplotlib import colormaps
 from matplotlib.axes import Axes
-from matplotlib.colors import TwoSlopeNorm
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from fe.kinds import hinge_kind
 from model.paths import file_stem, inside
-from validation.compare import METRIC_LABELS, METRICS, CaseComparison, Comparison, group_name
+from validation.compare import METRIC_LABELS, METRICS, CaseComparison, Comparison
+from validation.fingerprint import group_name, judged_value
+from validation.hysteresis import Status
 from validation.loops import branch_residuals
 
 UM_PER_MM = 1e3
 AMPLITUDE = ("amplitude_n", "amplitude Fg [N]")
+
+ERROR_MAP_LIMIT_PCT = 50.0
+"""The error map's colour scale spans ±this many percent, fixed (beyond it: the end colours)."""
+
+MARKERS = {Status.PASS: "o", Status.FAIL: "x", Status.NOT_MEASURABLE: "s"}
+"""Marker of a case on the error map, by the verdict on the metric the map shows."""
+
+
+GREY = (0.75, 0.75, 0.75, 1.0)
+"""Colour of a case on the error map without a relative error (not measurable)."""
+
+
+def error_colour(error_pct: float | None) -> tuple[float, float, float, float]:
+    """RGBA of an error [%] on the map's fixed diverging scale ±``ERROR_MAP_LIMIT_PCT``; grey for None.
+
+    Errors beyond the scale take its end colours: 0.0003 % stays white, +500 % is as red
+    as +50 %.
+    """
+    if error_pct is None or not math.isfinite(error_pct):
+        return GREY
+    norm = Normalize(-ERROR_MAP_LIMIT_PCT, ERROR_MAP_LIMIT_PCT, clip=True)
+    r, g, b, a = colormaps["RdBu_r"](float(norm(error_pct)))
+    return (float(r), float(g), float(b), float(a))
+
+
+def format_eta(eta: float | None) -> str:
+    """η with three significant digits, in scientific notation when small (``1.38e-05``)."""
+    if eta is None or not math.isfinite(eta):
+        return "—"
+    return f"{eta:.3g}"
 
 
 def _variables(cmp: Comparison) -> list[tuple[str, str]]:
@@ -49,6 +85,8 @@ def _save(fig: Figure, path: Path) -> Path:
 def _title(c: CaseComparison) -> str:
     k = c.case
     verdict = "pass" if c.passed else "FAIL: " + ", ".join(METRIC_LABELS[m] for m in c.failed)
+    if c.not_measurable:
+        verdict += "; not measurable: " + ", ".join(METRIC_LABELS[m] for m in c.not_measurable)
     where = ", ".join(filter(None, [k.describe(), f"Fg = {k.amplitude_n:g} N"]))
     return f"{_short(k.case_id)}: {where}\n{verdict}"
 
@@ -94,7 +132,15 @@ def plot_case_loops(c: CaseComparison, path: Path) -> Path:
     ax.axvline(0, color="0.8", lw=0.6, zorder=0)
     ax.set_xlabel("displacement δ [µm]")
     ax.set_ylabel("force F [N]")
-    text = [f"η: model {c.model['eta']:.4f}, measured {c.measured['eta']:.4f}"]
+    text = [f"η: model {format_eta(c.model['eta'])}, measured {format_eta(c.measured['eta'])}"]
+    if c.free_play_removed:
+        text[0] += " (free play included)"
+        text.append(
+            f"η without free play: model {format_eta(judged_value(c, 'model', 'eta'))}, "
+            f"measured {format_eta(judged_value(c, 'measured', 'eta'))}"
+        )
+    if "eta" in c.not_measurable:
+        text.append(textwrap.fill(f"η not measurable: {c.not_measurable['eta']}", 70))
     if c.rms_loop_mm is not None:
         text.append(f"RMS loop distance {c.rms_loop_mm * UM_PER_MM:.3g} µm")
     ax.text(0.02, 0.97, "\n".join(text), transform=ax.transAxes, va="top", fontsize=9)
@@ -120,40 +166,107 @@ def _design_axes(cmp: Comparison) -> tuple[str, str]:
     return AMPLITUDE[0], (varying or [design[0][0]])[0]
 
 
+@dataclass(frozen=True)
+class MapPoint:
+    """One case on the error map (``error_map_points``).
+
+    Attributes:
+        case_id: The case.
+        x: Its amplitude [N].
+        y: Its design value on the map's other axis.
+        status: The verdict on the map's metric.
+        marker: Matplotlib marker (``MARKERS``).
+        error_pct: The relative error [%], or None (not measurable, or failed without a
+            relative error).
+        colour: Its fill, RGBA (``error_colour``).
+        label: The text beside it.
+    """
+
+    case_id: str
+    x: float
+    y: float
+    status: Status
+    marker: str
+    error_pct: float | None
+    colour: tuple[float, float, float, float]
+    label: str
+
+
+def error_map_points(cmp: Comparison, metric: str = "eta") -> list[MapPoint]:
+    """Decide marker, colour value and label of every case on the error map of ``metric``.
+
+    The marker follows the verdict on ``metric`` itself (not the case's overall verdict):
+    ○ within kσ, × outside kσ, □ not measurable. Cases without the metric are left out.
+    """
+    xk, yk = _design_axes(cmp)
+    points = []
+    for c in cmp.cases:
+        j = c.judgements.get(metric)
+        if metric in c.errors:
+            status = Status.FAIL if metric in c.failed else Status.PASS
+            error: float | None = c.errors[metric] * 100
+            text = f"{error:+.1f} %"
+        elif j is not None:
+            status, error = j.status, None
+            text = "n/m" if status is Status.NOT_MEASURABLE else f"Δ{j.difference:+.3g}"
+        else:
+            continue
+        label = f"{text}\n{_short(c.case.case_id, 16)}"
+        points.append(
+            MapPoint(
+                c.case.case_id,
+                _value(c, xk),
+                _value(c, yk),
+                status,
+                MARKERS[status],
+                error,
+                error_colour(error),
+                label,
+            )
+        )
+    return points
+
+
 def plot_error_map(cmp: Comparison, path: Path, metric: str = "eta") -> Path:
     """Draw the error of one metric over the design space (amplitude × clearance or preload).
 
-    Each case is a marker coloured by its error (diverging map centred on 0), circled
-    when it passes and crossed when it fails; the label is the error in %.
+    Each case is a marker coloured by its error on a fixed scale ±``ERROR_MAP_LIMIT_PCT``
+    (diverging, centred on 0; grey without a relative error) and shaped by the verdict on
+    this metric (``error_map_points``); the label is the error in %.
     """
     xk, yk = _design_axes(cmp)
-    have = [c for c in cmp.cases if metric in c.errors]
-    x = np.array([_value(c, xk) for c in have])
-    y = np.array([_value(c, yk) for c in have])
-    e = np.array([c.errors[metric] for c in have]) * 100
-    lim = max(float(np.max(np.abs(e))) if e.size else 1.0, 1e-9)
+    points = error_map_points(cmp, metric)
+    lim = ERROR_MAP_LIMIT_PCT
     fig = Figure(figsize=(7.0, 5.0), layout="constrained")
     ax = fig.subplots()
-    sc = ax.scatter(x, y, c=e, s=260, cmap="RdBu_r", norm=TwoSlopeNorm(0.0, -lim, lim))
-    for c, xi, yi, ei in zip(have, x, y, e, strict=True):
-        if c.passed:
-            ax.scatter(xi, yi, s=420, marker="o", facecolors="none", edgecolors="k", linewidths=1.2)
+    for p in points:
+        ax.scatter(p.x, p.y, s=260, color=[p.colour], edgecolors="none")
+        if p.marker == "x":
+            ax.scatter(p.x, p.y, s=420, marker="x", color="k", linewidths=1.5)
         else:
-            ax.scatter(xi, yi, s=420, marker="x", color="k", linewidths=1.5)
+            ax.scatter(
+                p.x, p.y, s=420, marker=p.marker, facecolors="none", edgecolors="k", linewidths=1.2
+            )
         ax.annotate(
-            f"{ei:+.1f} %\n{_short(c.case.case_id, 16)}",
-            (xi, yi),
-            xytext=(0, 17),
-            textcoords="offset points",
-            ha="center",
-            fontsize=8,
+            p.label, (p.x, p.y), xytext=(0, 17), textcoords="offset points", ha="center", fontsize=8
         )
-    fig.colorbar(sc, ax=ax, label=f"{METRIC_LABELS[metric]} error (model − measured) [%]")
+    fig.colorbar(
+        ScalarMappable(Normalize(-lim, lim), colormaps["RdBu_r"]),
+        ax=ax,
+        extend="both",
+        label=f"{METRIC_LABELS[metric]} error (model − measured)/measured [%], "
+        f"scale fixed at ±{lim:g} %",
+    )
     labels = dict(_variables(cmp))
     ax.set_xlabel(labels[xk])
     ax.set_ylabel(labels[yk])
     ax.margins(0.25)
-    ax.set_title(f"{METRIC_LABELS[metric]} error over the design space (○ pass, × fail)")
+    k = cmp.settings.k
+    ax.set_title(
+        f"{METRIC_LABELS[metric]} error over the design space\nmarkers: {METRIC_LABELS[metric]} "
+        f"○ within {k:g}σ, × outside {k:g}σ, □ not measurable (grey: no relative error)",
+        fontsize=9.5,
+    )
     return _save(fig, path)
 
 
@@ -215,7 +328,7 @@ def plot_fingerprint(cmp: Comparison, path: Path) -> Path:
         label = short(members[0])
         for ax, key, what in ((ax_w, "W_cycle_Nmm", "W"), (ax_e, "eta", "eta")):
             for side, marker, ls in (("measured", "o", ":"), ("model", "s", "-")):
-                v = np.array([getattr(c, side).get(key, math.nan) for c in members])
+                v = np.array([judged_value(c, side, key) for c in members])
                 ok = np.isfinite(v) & (v > 0)
                 if not ok.any():
                     continue
@@ -238,8 +351,11 @@ def plot_fingerprint(cmp: Comparison, path: Path) -> Path:
         ax.set_xlabel("amplitude Fg [N]")
         ax.set_ylabel(ylabel)
         ax.grid(True, which="both", color="0.9")
-        # below the axes: inside, the legend of a 5-group design covered the points
-        ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
+        if ax.get_legend_handles_labels()[0]:  # nothing positive to draw (μ = 0): no legend
+            # below the axes: inside, the legend of a 5-group design covered the points
+            ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
+        else:
+            ax.text(0.5, 0.5, "no positive values", ha="center", transform=ax.transAxes)
     ax_w.set_title("W vs Fg (homogeneous model: slope 2)")
     ax_e.set_title("η vs Fg (homogeneous model: slope 0)")
     fig.suptitle(

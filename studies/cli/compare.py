@@ -22,7 +22,7 @@ from model.jsonio import dumps
 from studies.outputs import check_writable_dir
 
 if TYPE_CHECKING:
-    from validation.compare import Comparison
+    from validation.compare import CaseComparison, Comparison
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -109,6 +109,43 @@ def _fmt(slope: float) -> str:
     return f"{0.0 if abs(slope) < 0.005 else slope:.2f}"
 
 
+def _error_cell(c: CaseComparison, m: str) -> str:
+    """A metric's error in %, ``n/m`` where not measurable, ``Δ…`` where judged absolutely."""
+    mark = "*" if m in c.failed else ""
+    if m in c.errors:
+        return f"{c.errors[m] * 100:+.1f}%{mark}"
+    j = c.judgements.get(m)
+    if j is None:
+        return "—"
+    if m in c.not_measurable:
+        return "n/m"
+    return f"Δ{j.difference:+.3g}{mark}"
+
+
+def _sigma_text(c: CaseComparison) -> str:
+    """η's σ: relative where η is judged relatively, else absolute (never a % of ~0)."""
+    if "eta" in c.uncertainty:
+        return f"{c.uncertainty['eta'] * 100:.1f}%"
+    j = c.judgements.get("eta")
+    return "—" if j is None else f"±{j.sigma_abs:.2g}"
+
+
+def _hysteresis_notes(cmp: Comparison) -> list[str]:
+    """One line per case whose W or η is not measurable or fails absolutely, and what was cut."""
+    from validation.compare import METRIC_LABELS
+
+    notes = []
+    for c in cmp.cases:
+        cut = " (free play removed)" if c.free_play_removed else ""
+        for m, j in c.judgements.items():
+            if not j.relative:
+                what = "not measurable" if m in c.not_measurable else "FAIL"
+                notes.append(f"{c.case.case_id}: {METRIC_LABELS[m]}{cut} {what}: {j.reason}")
+    if any(c.free_play_removed for c in cmp.cases):
+        notes.append("with clearance, W and η are those of the loop without the free play")
+    return notes
+
+
 def format_table(cmp: Comparison) -> str:
     """Return the per-case table and the overall line (errors in %, * where |e| > kσ)."""
     from validation.compare import METRIC_LABELS, METRICS
@@ -124,16 +161,12 @@ def format_table(cmp: Comparison) -> str:
     rows = [heads]
     for c in cmp.cases:
         cells = [c.case.case_id, c.case.describe() or "—", f"{c.case.amplitude_n:g}"]
-        for m in METRICS:
-            if m in c.errors:
-                mark = "*" if m in c.failed else ""
-                cells.append(f"{c.errors[m] * 100:+.1f}%{mark}")
-            else:
-                cells.append("—")
+        cells += [_error_cell(c, m) for m in METRICS]
         src = c.uncertainty_source
         tag = "rep" if "replicates" in src else ("record" if src.startswith("record") else "stated")
-        cells.append(f"η {c.uncertainty['eta'] * 100:.1f}% ({tag})")
-        cells.append("pass" if c.passed else "FAIL")
+        cells.append(f"η {_sigma_text(c)} ({tag})")
+        nm = ", ".join(METRIC_LABELS[m] for m in c.not_measurable)
+        cells.append(("pass" if c.passed else "FAIL") + (f" ({nm} n/m)" if nm else ""))
         rows.append(cells)
     widths = [max(len(r[i]) for r in rows) for i in range(len(heads))]
     lines = [
@@ -151,8 +184,9 @@ def format_table(cmp: Comparison) -> str:
     )
     lines.append(
         f"{s['n_pass']}/{s['n_cases']} cases pass (|error| ≤ {cmp.settings.k:g}σ; * marks the failing metrics; "
-        "RMS is the loop distance / δ_max)"
+        "RMS is the loop distance / δ_max; n/m: not measurable, neither pass nor fail)"
     )
+    lines += _hysteresis_notes(cmp)
     if fp:
         lines.append(f"fingerprint — {fp}")
     return "\n".join(lines)
