@@ -43,6 +43,8 @@ METRIC_LABELS = {
 
 def _error_cell(case: Mapping[str, Any], metric: str) -> object:
     errors = case.get("errors") or {}
+    if metric in (case.get("not_measurable") or []):
+        return tag("span", "n/m", cls="na", title="not measurable at this noise: neither pass nor fail")
     if metric not in errors:
         return "—"
     text = pct(errors[metric])
@@ -51,8 +53,21 @@ def _error_cell(case: Mapping[str, Any], metric: str) -> object:
     return Html(tag("span", text))
 
 
+def _eta(loop: Mapping[str, Any] | None, case: Mapping[str, Any]) -> object:
+    """η as ``compare`` judged it: without the free play where it was removed (marked ′)."""
+    loop = loop or {}
+    if case.get("free_play_removed"):
+        value = loop.get("eta_without_free_play")
+        return None if value is None else f"{value:.3g} ′"
+    return loop.get("eta")
+
+
 def _cases_table(cases: list[Mapping[str, Any]], report_dir: Path) -> Html:
-    metrics = [m for m in METRIC_LABELS if any(m in (c.get("errors") or {}) for c in cases)]
+    metrics = [
+        m
+        for m in METRIC_LABELS
+        if any(m in (c.get("errors") or {}) or m in (c.get("not_measurable") or []) for c in cases)
+    ]
     heads = ["case", "Δr [mm]", "Fg [N]", *(f"{METRIC_LABELS[m]} error" for m in metrics)]
     heads += ["η measured", "η model", "verdict", "measurement"]
     rows = []
@@ -61,10 +76,14 @@ def _cases_table(cases: list[Mapping[str, Any]], report_dir: Path) -> Html:
         rows.append(
             [c.get("case_id"), c.get("clearance_mm"), c.get("amplitude_N")]
             + [_error_cell(c, m) for m in metrics]
-            + [(c.get("measured") or {}).get("eta"), (c.get("model") or {}).get("eta")]
+            + [_eta(c.get("measured"), c), _eta(c.get("model"), c)]
             + [verdict(c.get("passed")), link(Path(src), report_dir) if src else "—"]
         )
-    return scroll(table(heads, rows))
+    note = (
+        "η′: the loop without the free play (as compare judges clearance cases); "
+        "n/m: not measurable at the record's noise, neither pass nor fail"
+    )
+    return scroll(table(heads, rows, caption=note))
 
 
 def _metric_summary(summary: Mapping[str, Any]) -> Html:

@@ -513,3 +513,27 @@ def test_the_command_row_is_the_command_line_that_ran(jenkins, tmp_path, capsys)
     assert "'" + str(out) + "'" in _row(html_text, "command")
     assert _row(html_text, "run in") == os.getcwd()
     assert "exit status 0" in _row(html_text, "ended")
+
+
+def test_compare_report_shows_what_compare_judged_for_a_clearance_case(tmp_path):
+    """A clearance case shows η without the free play (η′) and 'n/m' for the metrics compare
+    could not measure, not the raw η with the free play or a dash (issue 33, item 4)."""
+    data = _compare_json(("c300",))
+    case = data["cases"][0]
+    case.update(
+        clearance_mm=0.1,
+        free_play_removed=True,
+        not_measurable=["W_cycle_Nmm", "eta"],
+        errors={"disp_at_peak_mm": 0.001},
+        measured={"eta": 1.4e-5, "eta_without_free_play": 0.000921},
+        model={"eta": 1.5e-5, "eta_without_free_play": 0.00161},
+    )
+    d = tmp_path / "compare"
+    _png(d / "error_map.png")
+    (d / "comparison.json").write_text(json.dumps(data))
+    assert main(["report", str(d)]) == 0
+    text = " ".join(check_structure(d / "report.html").text)
+    assert "0.000921 ′" in text
+    assert "0.00161 ′" in text
+    assert "1.4e-05" not in text
+    assert text.count("n/m") >= 2  # the W and η cells (and the note)
