@@ -77,7 +77,7 @@ def point_record(
         lu_threads = int(newton.LU_THREADS)
     spec = settings.spec()
 
-    from model.spec import describe_point, geometry_folder, point_folder
+    from model.spec import describe_point, geometry_folder, point_folder, point_label
 
     p = run.point
     # named by the result key: a rerun with other settings never writes into this folder

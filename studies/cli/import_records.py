@@ -35,7 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         metavar="CONDITION",
         default=None,
         help="also report energy per cycle and the straight-line leave-one-amplitude-out "
-        "error, one line per level of CONDITION (e.g. band_tension_N)",
+        "error, one line per level of CONDITION (e.g. band_tension_N; default: not reported)",
     )
     p.add_argument(
         "--x",
