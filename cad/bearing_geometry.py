@@ -49,6 +49,10 @@ CONTACT_EDGE_MARGIN_DEG = 10.0
 """Smallest angle between the contact point and the groove edge, seen from the groove
 centre: room for the contact ellipse (its half-width a/(f·D_w) is ≈ 6° at 200 N)."""
 
+MAX_PRELOAD_N = 500.0
+"""Largest axial preload F_p [N] (the paper: 0–200): the one range every check and message
+of the preload states (``fe.kinds.bearing.PRELOAD``, the bearing cycles)."""
+
 MIN_WALL_MM = 1.0
 """Smallest lug wall and plate rim accepted [mm]."""
 
@@ -161,18 +165,20 @@ class BearingHingeParams:
         check_range("contact_angle_deg", self.contact_angle_deg, 0.0, 45.0, lo_open=True)
         check_range("inner_curvature_ratio", self.inner_curvature_ratio, 0.5, 0.6, lo_open=True)
         check_range("outer_curvature_ratio", self.outer_curvature_ratio, 0.5, 0.6, lo_open=True)
-        check_range("preload_n", self.preload_n, 0.0, 500.0)
+        check_range("preload_n", self.preload_n, 0.0, MAX_PRELOAD_N)
         for name, kind in (("ball_model", BallModel), ("interfaces", Interfaces)):
             if not isinstance(getattr(self, name), kind):
                 allowed = [m.value for m in kind]
                 raise ParameterError(
-                    f"{name} must be one of {allowed}, got {getattr(self, name)!r}"
+                    f"{name} must be one of {allowed}, got {getattr(self, name)!r}",
+                    parameter=name,
                 )
         if self.arrangement is Arrangement.BACK_TO_BACK and self.preload_n > 0.0:
             raise ParameterError(
                 f"preload_n must be 0 for arrangement={self.arrangement.name} (a plate "
                 f"pinching the outer rings unloads a back-to-back pair; use FACE_TO_FACE), "
-                f"got {self.preload_n!r}"
+                f"got {self.preload_n!r}",
+                parameter="preload_n",
             )
         check_range(
             "ball_diameter_mm", self.ball_diameter_mm, 0.0, self.max_ball_diameter_mm, lo_open=True

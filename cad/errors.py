@@ -12,7 +12,30 @@ class HingelabError(Exception):
 
 
 class ParameterError(HingelabError, ValueError):
-    """A parameter is outside its allowed range; the message names it, its value and the range."""
+    """A parameter is outside its allowed range; the message names it, its value and the range.
+
+    Attributes:
+        parameter: The parameter the message starts with, as the code spells it (the
+            dataclass field ``check_range`` names), or None. A boundary that knows what the
+            user typed for it (a command-line option, a file key) words the message in the
+            user's terms with ``renamed``.
+    """
+
+    def __init__(self, message: str, *, parameter: str | None = None) -> None:
+        super().__init__(message)
+        self.parameter = parameter
+
+    def renamed(self, user_name: str) -> ParameterError:
+        """Return this error naming ``user_name`` where it names ``parameter``.
+
+        ``check_range("increments_per_stage", …)`` gives "increments_per_stage must be in
+        [2, 10000], got 1"; renamed to ``--increments``: "--increments must be in [2, 10000],
+        got 1". An error that does not start with its parameter is returned as it is.
+        """
+        text = str(self)
+        if self.parameter is None or not text.startswith(self.parameter):
+            return self
+        return ParameterError(user_name + text[len(self.parameter) :], parameter=user_name)
 
 
 class GeometryError(HingelabError, ValueError):
@@ -87,4 +110,6 @@ def check_range(
     if bad:
         left = "(" if lo_open else "["
         right = ")" if hi_open else "]"
-        raise ParameterError(f"{name} must be in {left}{lo:g}, {hi:g}{right}, got {value!r}")
+        raise ParameterError(
+            f"{name} must be in {left}{lo:g}, {hi:g}{right}, got {value!r}", parameter=name
+        )

@@ -50,6 +50,10 @@ MIN_WALL_MM = 1.0
 MAX_OVERHANG_MM = 10.0
 """Longest pin overhang beyond a clevis arm that something still holds [mm]."""
 
+MAX_CLEARANCE_MM = 10.0
+"""Largest radial clearance on any geometry [mm] (``GeneralHingeParams.max_clearance_mm``
+is the bound on a given one)."""
+
 SURFACE_TOL_MM = 1e-3
 """Half-width of the boxes that pick named faces along z [mm]."""
 
@@ -91,8 +95,7 @@ class GeneralHingeParams:
         check_range(
             "lug_width_mm", self.lug_width_mm, 2 * (self.pin_radius_mm + MIN_WALL_MM), 500.0
         )
-        max_clearance = self.lug_width_mm / 2 - self.pin_radius_mm - MIN_WALL_MM
-        check_range("clearance_mm", self.clearance_mm, 0.0, max_clearance)
+        check_range("clearance_mm", self.clearance_mm, 0.0, self.max_clearance_mm)
         check_range("tang_thickness_mm", self.tang_thickness_mm, 0.5, 200.0)
         check_range("clevis_arm_thickness_mm", self.clevis_arm_thickness_mm, 0.5, 200.0)
         check_range("clevis_gap_mm", self.clevis_gap_mm, 0.01, 20.0)
@@ -106,6 +109,16 @@ class GeneralHingeParams:
                 self.span_mm,
                 self.span_mm + 2 * MAX_OVERHANG_MM,
             )
+
+    @property
+    def max_clearance_mm(self) -> float:
+        """The largest clearance Δr on this geometry [mm].
+
+        The hole leaves ``MIN_WALL_MM`` of lug wall, and Δr is never more than
+        ``MAX_CLEARANCE_MM``: the one range every check and message of the clearance
+        states (``fe.kinds.general.CLEARANCE`` reads it).
+        """
+        return min(MAX_CLEARANCE_MM, self.lug_width_mm / 2 - self.pin_radius_mm - MIN_WALL_MM)
 
     @property
     def hole_radius_mm(self) -> float:

@@ -51,7 +51,8 @@ class MeshSettings:
         check_range("slave_ratio", self.slave_ratio, 1.0, 8.0)
         if not isinstance(self.refinement, int) or not 0 <= self.refinement <= 4:
             raise ParameterError(
-                f"refinement must be an integer in [0, 4], got {self.refinement!r}"
+                f"refinement must be an integer in [0, 4], got {self.refinement!r}",
+                parameter="refinement",
             )
         check_range("arc_grading", self.arc_grading, 1.0, 100.0)
         check_range("pin_band_sizes", self.pin_band_sizes, 1.0, float("inf"))
@@ -59,7 +60,8 @@ class MeshSettings:
             check_range(f"part_sizes_mm[{fragment!r}]", size, 0.01, 50.0)
         if self.contact_size_mm > self.size_mm:
             raise ParameterError(
-                f"contact_size_mm must be ≤ size_mm ({self.size_mm:g}), got {self.contact_size_mm:g}"
+                f"contact_size_mm must be ≤ size_mm ({self.size_mm:g}), got {self.contact_size_mm:g}",
+                parameter="contact_size_mm",
             )
 
     @property

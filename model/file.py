@@ -261,7 +261,11 @@ def read_model(path: Path | str, registry: EffectRegistry | None = None) -> Mode
     )
     if "mu" in friction:
         cycle_values["mu"] = _convert(friction["mu"], float, "mu", _where(path, "friction"))
-    cycle = _build(CycleSettings, cycle_values, _where(path, "cycle/friction"))
+    try:
+        cycle = CycleSettings(**cycle_values)
+    except ParameterError as err:  # μ is written in [friction], the rest in [cycle]
+        section = "friction" if err.parameter == "mu" else "cycle"
+        raise ParameterError(f"{_where(path, section)}: {err}") from err
     effects = _read_effects(_table(doc, "effects", str(path)), registry, path)
     return ModelSpec(kind, params, mesh, cycle, effects)
 

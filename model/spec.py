@@ -128,7 +128,7 @@ def complete_point(spec: ModelSpec, point: DesignPoint) -> DesignPoint:
             f"{unknown[0]} = {point.values[unknown[0]]!r}; it has: {allowed}"
         )
     values = {
-        name: var.check(point.values.get(name, getattr(spec.hinge, name)))
+        name: var.check(point.values.get(name, getattr(spec.hinge, name)), spec.hinge)
         for name, var in variables.items()
     }
     return DesignPoint(point.amplitude_n, values)

@@ -63,7 +63,9 @@ def monomial_exponents(n_vars: int, degree: int) -> Exponents:
     if n_vars < 1:
         raise ParameterError(f"n_vars must be at least 1, got {n_vars}")
     if not 1 <= degree <= MAX_DEGREE:
-        raise ParameterError(f"degree must be in [1, {MAX_DEGREE}], got {degree}")
+        raise ParameterError(
+            f"degree must be in [1, {MAX_DEGREE}], got {degree}", parameter="degree"
+        )
     terms: list[tuple[int, ...]] = []
     for d in range(degree + 1):
         # combinations_with_replacement yields (0, 0, 1) before (0, 1, 1): x1^2*x2 before x1*x2^2.

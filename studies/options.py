@@ -55,9 +55,10 @@ def params_with(
         kw[name] = _converted(types[name], value, what)
     try:
         return kind.params_type(**kw)
-    except ParameterError as err:
-        option = next((options[n] for n in kw if n in options and n in str(err)), None)
-        raise ParameterError(f"{option}: {err}" if option else str(err)) from err
+    except ParameterError as err:  # in the option's name when the option gave that field
+        if err.parameter in kw and err.parameter in options:
+            raise err.renamed(options[err.parameter]) from err
+        raise
 
 
 def _converted(hint: Any, value: Any, what: str) -> Any:

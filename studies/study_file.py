@@ -171,9 +171,17 @@ def _table(doc: dict[str, Any], name: str, path: Path) -> dict[str, Any]:
 
 
 def _override(
-    obj: Any, table: dict[str, Any], path: Path, sec: str, skip: tuple[str, ...] = ()
+    obj: Any,
+    table: dict[str, Any],
+    path: Path,
+    sec: str,
+    skip: tuple[str, ...] = (),
+    keys: dict[str, str] | None = None,
 ) -> Any:
-    """Return ``obj`` with the table's number fields replaced, every key and range checked."""
+    """Return ``obj`` with the table's number fields replaced, every key and range checked.
+
+    ``keys``: field → the key the user wrote for it (``[solver] increments``), for messages.
+    """
     fields = {
         f.name: getattr(obj, f.name)
         for f in dataclasses.fields(obj)
@@ -189,7 +197,8 @@ def _override(
     try:
         return dataclasses.replace(obj, **values)
     except ParameterError as err:
-        raise _err(path, sec, str(err)) from err
+        key = (keys or {}).get(err.parameter or "")
+        raise _err(path, sec, str(err.renamed(key) if key else err)) from err
 
 
 def _base_spec(study: dict[str, Any], path: Path) -> ModelSpec:
@@ -223,11 +232,14 @@ def _model(doc: dict[str, Any], study: dict[str, Any], path: Path) -> ModelSpec:
         mesh = kind.mesh_settings(coarse=preset == "coarse")
     mesh = _override(mesh, mesh_t, path, "mesh")
     solver_t = dict(_table(doc, "solver", path))
+    typed = {}
     if "increments" in solver_t:
         n = _number(solver_t.pop("increments"), "increments", path, "solver", integer=True)
         for k in ("increments_per_stage", "clearance_increments"):
-            solver_t.setdefault(k, n)
-    cycle = _override(spec.cycle, solver_t, path, "solver", skip=("amplitude_n", "blas_threads"))
+            if k not in solver_t:
+                solver_t[k], typed[k] = n, "increments"
+    skip = ("amplitude_n", "blas_threads")
+    cycle = _override(spec.cycle, solver_t, path, "solver", skip=skip, keys=typed)
     return dataclasses.replace(spec, hinge=hinge, mesh=mesh, cycle=cycle)
 
 
@@ -324,13 +336,17 @@ def _check_points(points: list[tuple[float, float]], spec: ModelSpec, path: Path
 
     names = study_variables(spec.hinge_kind)
     variables = spec.hinge_kind.design_variables[:1]
+    columns = {x.name: x.column for x in variables} | {"amplitude_n": "amplitude_N"}
     for i, (v, a) in enumerate(points):
         try:
             complete_point(spec, DesignPoint(a, {x.name: v for x in variables}))
-        except ParameterError as err:
+        except ParameterError as err:  # named by the [design.<column>] the user wrote
+            column = columns.get(err.parameter or "")
             where = f"{names[0]} = {v:g}, " if variables else ""
             raise _err(
-                path, "design", f"point {i + 1} ({where}amplitude_N = {a:g}): {err}"
+                path,
+                "design",
+                f"point {i + 1} ({where}amplitude_N = {a:g}): {err.renamed(column) if column else err}",
             ) from err
 
 

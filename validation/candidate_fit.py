@@ -16,6 +16,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy import optimize, stats
 
+from cad.errors import ParameterError
+from fe.effects.registry import REGISTRY
 from fe.kinds import DEFAULT_KIND, DesignVariable, hinge_kind
 from validation.evaluate import ModelEvaluator
 from validation.features import FeatureSettings, derived, feature_sigma, loop_features
@@ -62,6 +64,14 @@ class DiagnoseSettings:
     power: float = 0.8
     tell_rel_error: float = 0.5
     candidates: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:  # before any model runs
+        unknown = sorted(set(self.candidates or ()) - set(REGISTRY))
+        if unknown:
+            raise ParameterError(
+                f"candidates: unknown effect(s) {unknown}; known: {', '.join(REGISTRY)}",
+                parameter="candidates",
+            )
 
 
 @dataclass(frozen=True)

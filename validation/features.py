@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from cad.errors import check_range
 from validation.loops import ProcessedLoop, area_noise_sigma, noise_level
 
 FloatArray = npt.NDArray[np.float64]
@@ -71,6 +72,12 @@ class FeatureSettings:
     eta_floor: float = 0.001
     eta_rel_sigma: float = 0.05
     max_rel_sigma: float = 1.0
+
+    def __post_init__(self) -> None:
+        check_range("rel_floor", self.rel_floor, 0.0, 1.0)
+        check_range("eta_floor", self.eta_floor, 0.0, 1.0)
+        check_range("eta_rel_sigma", self.eta_rel_sigma, 0.0, 1.0)
+        check_range("max_rel_sigma", self.max_rel_sigma, 0.0, float("inf"), lo_open=True)
 
 
 def loop_features(loop: ProcessedLoop) -> FloatArray:

@@ -10,7 +10,7 @@ follow; the last one is used). Every loop, measured or computed, goes through
    +, −, +, (−, +)…; within each, the extreme sample is the turning point. The last loop
    runs from the last-but-one positive peak through the last negative peak to the last
    positive peak.
-2. **Offsets** (``remove_offsets``): the *initial zero* is the run of leading samples
+2. **Offsets** (``loading_start``): the *initial zero* is the run of leading samples
    before the force or the displacement first moves away from its first sample by more
    than a band: four times its noise (estimated from the median absolute second
    difference, which a ramp does not change), capped at ``ZERO_FRACTION`` of its range
@@ -19,6 +19,17 @@ follow; the last one is used). Every loop, measured or computed, goes through
    noise-free record (the model) gets its first sample only. The force offset is the
    median force of that run (a load cell that reads non-zero at zero load), the
    displacement offset its median displacement (the loop starts at δ = 0).
+
+   A record **cut mid-cycle** has no zero-load samples: its first force is not its zero.
+   A load-cell offset shifts the zero and both peaks alike, so a record starts at rest
+   when its initial zero lies at the midpoint of its peaks (within ``REST_FRACTION`` of
+   the half peak-to-peak force plus ``NOISE_BANDS`` noise σ). Otherwise, if its force
+   reverses, the protocol is sought inside it: it starts at the upward zero crossing
+   before the first +Fg excursion that follows a sample at or below zero (what comes
+   before is not used); the force zero is the midpoint of the peaks (a force-controlled
+   test turns at ±Fg about its zero), the displacement zero the centre
+   ``(δ(+peak) + δ(−peak))/2`` of that first full cycle (where a symmetric hinge stands
+   unloaded: its virgin loading is not in the record).
 3. **Metrics** (``loop_metrics``), on the last loop ``+Fg → −Fg → +Fg``:
 
    * ``F_max = (F(+peak) − F(−peak))/2``, the half peak-to-peak force (exactly Fg for
@@ -46,6 +57,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import DataError
+from validation.loop_metrics import LoopMetrics, Stages, loop_metrics
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -58,65 +70,12 @@ NOISE_BANDS = 4.0
 REVERSAL_FRACTION = 0.5
 """Excursions are counted beyond ± this fraction of max|F| (hysteresis threshold)."""
 
+REST_FRACTION = 0.02
+"""A record starts at rest when its initial zero lies within this fraction of its half
+peak-to-peak force (plus ``NOISE_BANDS`` noise σ) of the midpoint of its peaks."""
+
 GRID_POINTS = 101
 """Force levels per branch on which ``loop_distance`` compares two loops."""
-
-
-@dataclass(frozen=True)
-class Stages:
-    """Turning points of a record (indices into its samples).
-
-    Attributes:
-        start: First sample after the initial zero run (the loading starts here).
-        peak_first: The +Fg turning point that opens the last loop.
-        trough: The −Fg turning point of the last loop.
-        peak_last: The +Fg turning point that closes the last loop.
-        n_cycles: Closed loops −Fg → +Fg found in the record.
-    """
-
-    start: int
-    peak_first: int
-    trough: int
-    peak_last: int
-    n_cycles: int
-
-    @property
-    def last_loop(self) -> slice:
-        """Samples of the last loop +Fg → −Fg → +Fg (inclusive of both peaks)."""
-        return slice(self.peak_first, self.peak_last + 1)
-
-
-@dataclass(frozen=True)
-class LoopMetrics:
-    """What ``loop_metrics`` measures on one loop (names as in ``fe.general.cycle`` metrics).
-
-    Attributes:
-        f_max_n: Half peak-to-peak force of the last loop [N].
-        disp_at_peak_mm: δ(+Fg) at the closing peak, from the start [mm].
-        disp_at_minus_peak_mm: δ(−Fg) [mm].
-        delta_max_mm: (δ(+Fg) − δ(−Fg))/2 [mm].
-        W_cycle_Nmm: Loop area, closed by the chord [N·mm].
-        U_max_Nmm: ½ F_max δ_max [N·mm].
-        eta: W_cycle / (2π U_max).
-        secant_stiffness_N_per_mm: F_max / δ_max [N/mm].
-        closure_mm: δ(end) − δ(start) of the last loop, the gap the chord closes [mm].
-        n_samples: Samples in the last loop.
-    """
-
-    f_max_n: float
-    disp_at_peak_mm: float
-    disp_at_minus_peak_mm: float
-    delta_max_mm: float
-    W_cycle_Nmm: float
-    U_max_Nmm: float
-    eta: float
-    secant_stiffness_N_per_mm: float
-    closure_mm: float
-    n_samples: int
-
-    def as_dict(self) -> dict[str, float]:
-        """Return the metrics as a plain dict (JSON-ready)."""
-        return {k: float(v) for k, v in vars(self).items()}
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,6 +90,8 @@ class ProcessedLoop:
         force_offset_n: The force offset that was removed [N].
         displacement_offset_mm: The displacement offset that was removed [mm].
         source: Where the record came from (file name or ``model:<case>``).
+        mid_cycle: The record starts mid-cycle (``LoadingStart.mid_cycle``): its
+            displacement is measured from the centre of its first full cycle.
     """
 
     force_n: FloatArray
@@ -140,6 +101,7 @@ class ProcessedLoop:
     force_offset_n: float
     displacement_offset_mm: float
     source: str
+    mid_cycle: bool = False
 
     def branches(self) -> tuple[tuple[FloatArray, FloatArray], tuple[FloatArray, FloatArray]]:
         """Return ((F, δ) descending +Fg → −Fg, (F, δ) ascending −Fg → +Fg) of the last loop."""
@@ -214,12 +176,23 @@ def initial_zero(force_n: FloatArray, displacement_mm: FloatArray | None = None)
     return first if first > 0 else 1
 
 
-def split_stages(force_n: FloatArray, source: str) -> Stages:
+def _excursions(F: FloatArray, h: float) -> list[npt.NDArray[np.int64]]:
+    """The runs of consecutive samples beyond +h or beyond −h (indices into ``F``)."""
+    level = np.sign(F).astype(np.int64) * (np.abs(F) > h)  # +1, −1 beyond ±h, else 0
+    idx = np.flatnonzero(level)
+    if idx.size == 0:
+        return []
+    return np.split(idx, np.flatnonzero(np.diff(level[idx])) + 1)
+
+
+def split_stages(force_n: FloatArray, source: str, start: int | None = None) -> Stages:
     """Find the turning points of a 0 → +Fg → −Fg → +Fg (→ −Fg → +Fg …) record.
 
     Args:
         force_n: Force, shape (n,) [N] (offset removed or not: the threshold is ½ max|F|).
         source: Name of the record for error messages.
+        start: First sample of the protocol (``LoadingStart.index``); None: the end of
+            the initial zero run.
 
     Returns:
         The stages.
@@ -228,15 +201,12 @@ def split_stages(force_n: FloatArray, source: str) -> Stages:
         DataError: If the excursions beyond ±½ max|F| do not alternate +, −, +, ….
     """
     F = np.asarray(force_n, dtype=np.float64)
-    h = REVERSAL_FRACTION * float(np.max(np.abs(F)))
-    level = np.sign(F).astype(np.int64) * (np.abs(F) > h)  # +1, −1 beyond ±h, else 0
-    idx = np.flatnonzero(level)
-    if idx.size == 0:
+    begin = initial_zero(F) if start is None else start
+    h = REVERSAL_FRACTION * float(np.max(np.abs(F[begin:])))
+    runs = [r + begin for r in _excursions(F[begin:], h)]  # each run: one excursion
+    if not runs:
         raise DataError(f"{source}: the force never leaves zero")
-    lv = level[idx]
-    cut = np.flatnonzero(np.diff(lv)) + 1
-    runs = np.split(idx, cut)  # each run: the samples of one excursion
-    signs = [int(level[r[0]]) for r in runs]
+    signs = [1 if F[r[0]] > 0 else -1 for r in runs]
     expected = [1 if k % 2 == 0 else -1 for k in range(len(signs))]
     if signs != expected or len(signs) < 3 or len(signs) % 2 == 0:
         found = ", ".join("+" if s > 0 else "−" for s in signs)
@@ -249,7 +219,7 @@ def split_stages(force_n: FloatArray, source: str) -> Stages:
         return int(run[np.argmax(sign * F[run])])
 
     return Stages(
-        start=initial_zero(F),
+        start=begin,
         peak_first=extreme(runs[-3], 1),
         trough=extreme(runs[-2], -1),
         peak_last=extreme(runs[-1], 1),
@@ -257,55 +227,12 @@ def split_stages(force_n: FloatArray, source: str) -> Stages:
     )
 
 
-def loop_area(force_n: FloatArray, displacement_mm: FloatArray) -> float:
-    """Return ∮ F dδ of a polygon closed by the chord from the last point to the first [N·mm].
-
-    ``W = Σ ½ (F_i + F_{i+1}) (δ_{i+1} − δ_i)`` over the samples and the closing chord;
-    for a closed polygon this is the shoelace area, independent of constant offsets.
-
-    Args:
-        force_n: Force along the loop, shape (n,) [N].
-        displacement_mm: Displacement along the loop, shape (n,) [mm].
-    """
-    F = np.append(np.asarray(force_n, dtype=np.float64), force_n[0])
-    d = np.append(np.asarray(displacement_mm, dtype=np.float64), displacement_mm[0])
-    return float(np.sum(0.5 * (F[1:] + F[:-1]) * np.diff(d)))
-
-
-def loop_metrics(force_n: FloatArray, displacement_mm: FloatArray, stages: Stages) -> LoopMetrics:
-    """Measure the last loop of an offset-free record (see the module docstring).
-
-    Args:
-        force_n: Force, offset removed, shape (n,) [N].
-        displacement_mm: Displacement from the start, shape (n,) [mm].
-        stages: Its turning points.
-    """
-    F = np.asarray(force_n, dtype=np.float64)
-    d = np.asarray(displacement_mm, dtype=np.float64)
-    sl = stages.last_loop
-    W = loop_area(F[sl], d[sl])
-    f_max = 0.5 * float(F[stages.peak_last] - F[stages.trough])
-    d_plus, d_minus = float(d[stages.peak_last]), float(d[stages.trough])
-    delta_max = 0.5 * (d_plus - d_minus)
-    U = 0.5 * f_max * delta_max
-    return LoopMetrics(
-        f_max_n=float(f_max),
-        disp_at_peak_mm=d_plus,
-        disp_at_minus_peak_mm=d_minus,
-        delta_max_mm=delta_max,
-        W_cycle_Nmm=W,
-        U_max_Nmm=U,
-        eta=W / (2 * math.pi * U) if U > 0 else math.nan,
-        secant_stiffness_N_per_mm=f_max / delta_max if delta_max > 0 else math.nan,
-        closure_mm=float(d[stages.peak_last] - d[stages.peak_first]),
-        n_samples=sl.stop - sl.start,
-    )
-
-
 def remove_offsets(
     force_n: FloatArray, displacement_mm: FloatArray
 ) -> tuple[FloatArray, FloatArray, float, float]:
     """Subtract the force and displacement of the initial zero run (medians).
+
+    A record at rest only: ``loading_start`` also finds the zero of a record cut mid-cycle.
 
     Returns:
         (force [N], displacement [mm], force offset [N], displacement offset [mm]); the
@@ -317,6 +244,72 @@ def remove_offsets(
     f0 = float(np.median(F[:n0]))
     d0 = float(np.median(d[:n0]))
     return F - f0, d - d0, f0, d0
+
+
+@dataclass(frozen=True)
+class LoadingStart:
+    """Where the protocol of a record begins and where its zero is (module docstring, step 2).
+
+    Attributes:
+        index: First sample of the protocol: the end of the initial zero run, or for a
+            record cut mid-cycle its upward zero crossing before the first +Fg.
+        force_offset_n: The force read at zero load [N].
+        displacement_offset_mm: The displacement taken as δ = 0 [mm].
+        mid_cycle: The record starts mid-cycle (its first force is not its zero).
+        first_force_n: The record's first force [N] (for messages).
+    """
+
+    index: int
+    force_offset_n: float
+    displacement_offset_mm: float
+    mid_cycle: bool
+    first_force_n: float
+
+    def describe(self) -> str:
+        """Say how the zero was found, for messages."""
+        if self.mid_cycle:
+            return (
+                f"the record starts mid-cycle at {self.first_force_n:.4g} N; its zero is the "
+                f"midpoint of its peaks, {self.force_offset_n:.3g} N, and the load sequence "
+                f"starts at its upward zero crossing, data row {self.index + 1}"
+            )
+        return f"offset {self.force_offset_n:.3g} N removed"
+
+
+def loading_start(force_n: FloatArray, displacement_mm: FloatArray) -> LoadingStart:
+    """Find where the protocol of a record starts, and its force and displacement zero.
+
+    See the module docstring (step 2): at rest, the medians of the initial zero run; cut
+    mid-cycle, the midpoint of the peaks and the centre of the first full cycle.
+
+    Args:
+        force_n: Raw force, shape (n,) [N].
+        displacement_mm: Raw displacement, shape (n,) [mm].
+    """
+    F = np.asarray(force_n, dtype=np.float64)
+    d = np.asarray(displacement_mm, dtype=np.float64)
+    n0 = initial_zero(F, d)
+    f_rest, d_rest = float(np.median(F[:n0])), float(np.median(d[:n0]))
+    hi, lo = float(np.max(F)), float(np.min(F))
+    centre, half = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    h = REVERSAL_FRACTION * max(hi, -lo)
+    at_rest = abs(f_rest - centre) <= REST_FRACTION * half + NOISE_BANDS * noise_level(F)
+    if at_rest or not (hi > h and lo < -h):  # a record that never reverses keeps its zero
+        return LoadingStart(n0, f_rest, d_rest, False, float(F[0]))
+    F0 = F - centre
+    below = np.flatnonzero(F0 <= 0.0)
+    runs = _excursions(F0, REVERSAL_FRACTION * half)
+    ups = [k for k, r in enumerate(runs) if F0[r[0]] > 0 and r[0] > below[0]]
+    if not ups:  # no +Fg after a zero: split_stages refuses it from the first crossing
+        return LoadingStart(int(below[0]), centre, float(d[below[0]]), True, float(F[0]))
+    k = ups[0]
+    index = int(below[below < runs[k][0]][-1])
+    d0 = float(d[index])
+    if k + 1 < len(runs):  # the centre of the first full cycle +peak → −peak
+        peak = runs[k][np.argmax(F0[runs[k]])]
+        trough = runs[k + 1][np.argmin(F0[runs[k + 1]])]
+        d0 = 0.5 * float(d[peak] + d[trough])
+    return LoadingStart(index, centre, d0, True, float(F[0]))
 
 
 REVERSED_ETA = -0.002
@@ -344,7 +337,7 @@ def area_noise_sigma(force_n: FloatArray, displacement_mm: FloatArray, stages: S
 
 
 def process_loop(force_n: FloatArray, displacement_mm: FloatArray, source: str) -> ProcessedLoop:
-    """Remove offsets, split the stages and measure the last loop of a record.
+    """Find the loading start and zero, split the stages and measure the last loop of a record.
 
     Args:
         force_n: Raw force, shape (n,) [N].
@@ -357,8 +350,15 @@ def process_loop(force_n: FloatArray, displacement_mm: FloatArray, source: str) 
             that runs the wrong way round (η < ``REVERSED_ETA``: a passive hinge dissipates).
     """
     _check_arrays(force_n, displacement_mm, source)
-    F, d, f0, d0 = remove_offsets(force_n, displacement_mm)
-    stages = split_stages(F, source)
+    start = loading_start(force_n, displacement_mm)
+    F = np.asarray(force_n, dtype=np.float64) - start.force_offset_n
+    d = np.asarray(displacement_mm, dtype=np.float64) - start.displacement_offset_mm
+    try:
+        stages = split_stages(F, source, start.index)
+    except DataError as err:
+        if not start.mid_cycle:
+            raise
+        raise DataError(f"{err} ({start.describe()})") from err
     metrics = loop_metrics(F, d, stages)
     if metrics.delta_max_mm < 0.0:
         raise DataError(
@@ -373,7 +373,8 @@ def process_loop(force_n: FloatArray, displacement_mm: FloatArray, source: str) 
             f"η = {metrics.eta:.4f}, beyond its noise): a passive hinge dissipates; the force and "
             "displacement channels are out of step (check their sign and time alignment)"
         )
-    return ProcessedLoop(F, d, stages, metrics, f0, d0, source)
+    f0, d0 = start.force_offset_n, start.displacement_offset_mm
+    return ProcessedLoop(F, d, stages, metrics, f0, d0, source, mid_cycle=start.mid_cycle)
 
 
 def _side(F: FloatArray, d: FloatArray, positive: bool) -> tuple[FloatArray, FloatArray]:

@@ -24,7 +24,8 @@ that are no hinge kind's design variable (``Case.conditions``). Files without th
 columns read as before.
 
 A force-controlled loop must reach the stated amplitude: after removing the force offset (see
-``validation.loops``), ``max F ≥ (1 − AMPLITUDE_TOL)·Fg`` and ``min F ≤ −(1 − AMPLITUDE_TOL)·Fg``,
+``validation.loops.loading_start``: a record cut mid-cycle is measured from the midpoint
+of its peaks, not from its first force), ``max F ≥ (1 − AMPLITUDE_TOL)·Fg`` and ``min F ≤ −(1 − AMPLITUDE_TOL)·Fg``,
 and it must not overshoot by more than ``OVERSHOOT_TOL`` (which would mean the stated
 amplitude is wrong).
 """
@@ -47,7 +48,7 @@ from validation.loop_files import (
     table_number,
     table_optional,
 )
-from validation.loops import ProcessedLoop, process_loop, remove_offsets
+from validation.loops import ProcessedLoop, loading_start, process_loop
 from validation.rig_cycles import check_displacement_amplitude, process_displacement_cycle
 from validation.rig_mapping import CONDITION_PREFIX, Control
 
@@ -213,14 +214,15 @@ def check_amplitude(loop: Loop, amplitude_n: float, where: str) -> None:
     Raises:
         DataError: Naming the case, the stated and the reached force.
     """
-    F, _, f0, _ = remove_offsets(loop.force_n, loop.displacement_mm)
+    start = loading_start(loop.force_n, loop.displacement_mm)
+    F = loop.force_n - start.force_offset_n
     lo, hi = float(F.min()), float(F.max())
     reach = (1 - AMPLITUDE_TOL) * amplitude_n
     if hi < reach or lo > -reach:
         raise DataError(
             f"{where}: the loop never reaches the stated amplitude ±{amplitude_n:g} N within "
             f"{AMPLITUDE_TOL:.0%}: its force spans [{lo:.4g}, {hi:.4g}] N "
-            f"(offset {f0:.3g} N removed)"
+            f"({start.describe()})"
         )
     over = (1 + OVERSHOOT_TOL) * amplitude_n
     if hi > over or lo < -over:

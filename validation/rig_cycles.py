@@ -27,15 +27,13 @@ import numpy.typing as npt
 
 from cad.errors import DataError
 from validation.loop_files import Loop
+from validation.loop_metrics import Stages, loop_area, loop_metrics
 from validation.loops import (
     NOISE_BANDS,
     REVERSED_ETA,
     REVERSED_SIGMAS,
     ProcessedLoop,
-    Stages,
     area_noise_sigma,
-    loop_area,
-    loop_metrics,
     noise_level,
 )
 
@@ -190,7 +188,7 @@ def process_displacement_cycle(
 ) -> ProcessedLoop:
     """Measure one displacement-controlled cycle (offsets already removed on import).
 
-    The metrics are ``validation.loops.loop_metrics`` at the displacement's turning points:
+    The metrics are ``validation.loop_metrics.loop_metrics`` at the displacement's turning points:
     ``F_max = ½(F(+δ) − F(−δ))`` (the force at the reversals), ``δ_max`` the half
     peak-to-peak displacement, W the loop area closed by the chord, η = W/(2π·½F_max δ_max).
 

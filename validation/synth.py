@@ -100,7 +100,9 @@ class SynthSettings:
 
     def __post_init__(self) -> None:
         if not isinstance(self.seed, int) or self.seed < 0:
-            raise ParameterError(f"seed must be an integer ≥ 0, got {self.seed!r}")
+            raise ParameterError(
+                f"seed must be an integer ≥ 0, got {self.seed!r}", parameter="seed"
+            )
         check_range("noise_force_n", self.noise_force_n, 0.0, 100.0)
         check_range("noise_disp_mm", self.noise_disp_mm, 0.0, 0.1)
         check_range("force_offset_n", self.force_offset_n, 0.0, 1000.0)
@@ -162,7 +164,7 @@ def finer_mesh(mesh: MeshSettings, arc_factor: float = ARC_GRADING_FACTOR) -> Me
 
 
 def design_cases(
-    design: Sequence[tuple[float, Sequence[float]]], kind: str = DEFAULT_KIND
+    design: Sequence[tuple[float, Sequence[float]]], kind: str = DEFAULT_KIND, params: Any = None
 ) -> tuple[SynthCase, ...]:
     """Return the cases of a design (design value → amplitudes), in order.
 
@@ -170,6 +172,8 @@ def design_cases(
         design: Design value → amplitudes [N]; the value is the kind's design variable
             (the clearance [mm] of the general hinge, the preload [N] of the bearing hinge).
         kind: Hinge kind.
+        params: The model's hinge parameters (their geometry bounds a design value,
+            ``fe.kinds.DesignVariable.bounds``), or None.
 
     Raises:
         ParameterError: An unknown kind, a design value out of range, a non-positive
@@ -180,7 +184,7 @@ def design_cases(
     seen: set[tuple[float, float]] = set()
     for x, amps in design:
         for v in variables:
-            v.check(x)
+            v.check(x, params)
         for amp in amps:
             check_range("amplitude_n", amp, 0.0, 1e6, lo_open=True)
             what = ", ".join([*(v.text(x) for v in variables), f"Fg = {amp:g} N"])

@@ -28,7 +28,8 @@ import numpy as np
 import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
-from cad.errors import ConvergenceError, ParameterError
+from cad.bearing_geometry import MAX_PRELOAD_N
+from cad.errors import ConvergenceError, check_range
 from fe.bearing.balls import REG_FRACTION, ball_law, block_diag
 from fe.bearing.fits import GRIP, N_RIGID, FitSystem
 from fe.bearing.loading import with_zero_crossing
@@ -232,11 +233,10 @@ def fit_preload(
     depend on the path and each secant step starts from the last one's state.
 
     Raises:
-        ParameterError: If ``preload_n`` is outside [0, 500] N.
+        ParameterError: If ``preload_n`` is outside [0, ``MAX_PRELOAD_N``] N.
         ConvergenceError: With increment 0 if σ or the state does not converge.
     """
-    if not 0.0 <= preload_n <= 500.0:
-        raise ParameterError(f"preload_n must be in [0, 500] N, got {preload_n!r}")
+    check_range("preload_n", preload_n, 0.0, MAX_PRELOAD_N)
     s0 = unloaded(system)
     if preload_n == 0.0:
         return s0, 0.0

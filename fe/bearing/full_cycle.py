@@ -38,7 +38,8 @@ import numpy as np
 import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
-from cad.errors import ConvergenceError, ParameterError
+from cad.bearing_geometry import MAX_PRELOAD_N
+from cad.errors import ConvergenceError, ParameterError, check_range
 from fe.bearing.ball_rig import load_or_build_rig
 from fe.bearing.balls import (
     GRIP_X,
@@ -272,7 +273,7 @@ def full_preload(
     re-seats frictionless), to measure what a frictional preload would dissipate.
 
     Raises:
-        ParameterError: If ``preload_n`` is outside [0, 500] N.
+        ParameterError: If ``preload_n`` is outside [0, ``MAX_PRELOAD_N``] N.
         ConvergenceError: With increment 0 (the preload step).
     """
     n = system.n_balls
@@ -367,12 +368,11 @@ def run_full_cycle(
         progress: Called as ``progress(done, total)`` after each load target.
 
     Raises:
-        ParameterError: If ``preload_n`` is outside [0, 500] N.
+        ParameterError: If ``preload_n`` is outside [0, ``MAX_PRELOAD_N``] N.
         ConvergenceError: With the increment, iteration and residual; ``partial`` holds
             the increments that converged.
     """
-    if not 0.0 <= preload_n <= 500.0:
-        raise ParameterError(f"preload_n must be in [0, 500] N, got {preload_n!r}")
+    check_range("preload_n", preload_n, 0.0, MAX_PRELOAD_N)
     t0 = time.perf_counter()
     law = meshed_ball_law(system, settings.mu, grid)
     t_rig = time.perf_counter() - t0

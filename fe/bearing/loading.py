@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from cad.errors import ConvergenceError, ParameterError
+from cad.bearing_geometry import MAX_PRELOAD_N
+from cad.errors import ConvergenceError, check_range
 from fe.bearing.balls import (
     GRIP_X,
     GRIP_Z,
@@ -62,11 +63,10 @@ def preload_step(
     """Set the pair down to the plate force F_p (step 1).
 
     Raises:
-        ParameterError: If ``preload_n`` is outside [0, 500] N.
+        ParameterError: If ``preload_n`` is outside [0, ``MAX_PRELOAD_N``] N.
         ConvergenceError: With increment 0 (the preload step), the iteration and residual.
     """
-    if not 0.0 <= preload_n <= 500.0:
-        raise ParameterError(f"preload_n must be in [0, 500] N, got {preload_n!r}")
+    check_range("preload_n", preload_n, 0.0, MAX_PRELOAD_N)
     s = settings or CycleSettings()
     n = system.n_balls
     if preload_n == 0.0:

@@ -32,6 +32,7 @@ import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
 from cad.errors import ParameterError, check_range
+from cad.general import MAX_CLEARANCE_MM
 from fe.contact.state import ContactSettings, ContactState
 from fe.cycle.driver import CycleStep, Recorded, Target, drive
 from fe.cycle.protocol import CycleSettings, stage_targets
@@ -110,7 +111,7 @@ def run_cycle(
         ConvergenceError: If an increment fails after ``max_cutbacks`` halvings; its
             ``partial`` is the CycleResult of the increments that converged.
     """
-    check_range("clearance_mm", clearance_mm, 0.0, 10.0)
+    check_range("clearance_mm", clearance_mm, 0.0, MAX_CLEARANCE_MM)
     if abs(clearance_mm - system.clearance_mm) > 1e-9:
         raise ParameterError(
             f"clearance_mm = {clearance_mm:g} does not match the mesh's exact cylinders "

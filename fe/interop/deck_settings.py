@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 from cad.errors import ParameterError, check_range
+from cad.general import MAX_CLEARANCE_MM
 
 CYCLE = (1.0, -1.0, 1.0)
 """Load factors at the end of the three steps of the cycle: 0 → +Fg → −Fg → +Fg."""
@@ -139,7 +140,7 @@ class DeckSettings:
             check_range(f"load_factors[{k}]", f, -10.0, 10.0)
         check_range("amplitude_n", self.amplitude_n, 0.0, 1e6, lo_open=True)
         check_range("mu", self.mu, 0.0, 2.0)
-        check_range("clearance_mm", self.clearance_mm, 0.0, 10.0)
+        check_range("clearance_mm", self.clearance_mm, 0.0, MAX_CLEARANCE_MM)
         check_range("increments_per_stage", self.increments_per_stage, 2, 10_000)
         for name in ("penalty_mpa_per_mm", "stick_slope_mpa_per_mm"):
             value = getattr(self, name)

@@ -66,7 +66,7 @@ class DesignVariable:
         word: Its name in words (``clearance``).
         unit: Its unit (``mm``).
         lo: Lowest allowed value.
-        hi: Highest allowed value.
+        hi: Highest allowed value on any parameters.
         tag: Prefix of the point's folder label (``c`` → ``c0.100_F300``).
         fmt: Format of the value in the label (``.3f``).
         structural: True if it changes the mesh and its factorisation (a clearance), False
@@ -74,6 +74,10 @@ class DesignVariable:
         study_levels: The levels a sweep takes when none are given.
         synth_levels: The levels of a synthetic data set's default design (``synth``).
         case_tag: Prefix of a synthetic case id (``dr`` → ``dr0.1mm_F300N``).
+        limit: A property of the kind's parameters that bounds the variable on their
+            geometry (``max_clearance_mm``), or None: the range at a model is then
+            [lo, min(hi, that)], the range its parameters check, so every message states
+            the same range (``bounds``).
     """
 
     name: str
@@ -89,14 +93,26 @@ class DesignVariable:
     study_levels: tuple[float, ...] = ()
     synth_levels: tuple[float, ...] = ()
     case_tag: str = "x"
+    limit: str | None = None
 
-    def check(self, value: float) -> float:
-        """Return ``value`` as a float (−0 → 0) after checking its range.
+    def bounds(self, params: Any = None) -> tuple[float, float]:
+        """Return (lowest, highest) allowed value, on ``params``' geometry when given."""
+        if params is None or self.limit is None:
+            return self.lo, self.hi
+        return self.lo, min(self.hi, float(getattr(params, self.limit)))
+
+    def check(self, value: float, params: Any = None) -> float:
+        """Return ``value`` as a float (−0 → 0) after checking its range (``bounds``).
+
+        Args:
+            value: The value.
+            params: The kind's parameters the value is set on (their geometry bounds it),
+                or None: the range on any parameters.
 
         Raises:
             ParameterError: Naming the variable, the value and the range.
         """
-        check_range(self.name, value, self.lo, self.hi)
+        check_range(self.name, value, *self.bounds(params))
         return float(value) + 0.0
 
     def text(self, value: float) -> str:

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from cad.bearing import make_bearing_hinge, without_balls
-from cad.bearing_geometry import BallModel, BearingHingeParams, Interfaces
+from cad.bearing_geometry import MAX_PRELOAD_N, BallModel, BearingHingeParams, Interfaces
 from cad.errors import ParameterError
 from fe.cycle.protocol import CycleSettings
 from fe.cycle.result import CycleResult
@@ -31,7 +31,7 @@ PRELOAD = DesignVariable(
     word="preload",
     unit="N",
     lo=0.0,
-    hi=500.0,
+    hi=MAX_PRELOAD_N,
     tag="p",
     fmt="g",
     structural=False,

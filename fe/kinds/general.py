@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from cad.general import GeneralHingeParams, make_general_hinge
+from cad.general import MAX_CLEARANCE_MM, GeneralHingeParams, make_general_hinge
 from fe.cycle.protocol import CycleSettings
 from fe.cycle.result import CycleResult
 from fe.kinds import Built, DesignVariable, Effects, Progress
@@ -24,13 +24,14 @@ CLEARANCE = DesignVariable(
     word="clearance",
     unit="mm",
     lo=0.0,
-    hi=10.0,
+    hi=MAX_CLEARANCE_MM,
     tag="c",
     fmt=".3f",
     structural=True,
     study_levels=(0.0, 0.1, 0.2, 0.3, 0.4),
     synth_levels=(0.0, 0.1, 0.2),
     case_tag="dr",
+    limit="max_clearance_mm",
 )
 """The radial clearance Δr: it changes the holes, so every value is its own mesh."""
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+from collections.abc import Mapping
 from typing import Any
 
 from cad.errors import ParameterError
@@ -95,27 +96,52 @@ def settings_from_args(args: argparse.Namespace, *, cycle: bool = True) -> MeshS
     return hinge_kind(args.hinge or DEFAULT_KIND).mesh_settings(cycle=cycle, **kw)
 
 
-OPTION_OF_FIELD = {
-    "amplitude_n": "--amplitude",
-    "clearance_mm": "--clearance",
-    "mu": "--mu",
-    "increments_per_stage": "--increments",
-    "clearance_increments": "--increments",
-    "n_cycles": "--cycles",
-    "refinement": "--refinement",
-    "size_mm": "--size",
-    "contact_size_mm": "--contact-size",
-    "preload_n": "--preload",
+FieldOptions = Mapping[str, tuple[str, ...]]
+"""A command's ``FIELD_OPTIONS``: parameter-dataclass field → the options that set it
+(``increments_per_stage`` → ``("--increments",)``; the sweep's ``clearance_mm`` →
+``("--levels", "--clearance")``)."""
+
+GEOMETRY_OPTIONS: FieldOptions = {
+    "clearance_mm": ("--clearance",),
+    "preload_n": ("--preload",),
+    "refinement": ("--refinement",),
+    "size_mm": ("--size",),
+    "contact_size_mm": ("--contact-size",),
 }
-"""Dataclass field → the command-line option a user types for it."""
+"""The fields ``add_geometry_arguments`` sets (``add_mesh_arguments``: the last three)."""
+
+FIT_OPTIONS: FieldOptions = {
+    "rel_floor": ("--model-error",),
+    "increments_per_stage": ("--increments",),
+    "clearance_increments": ("--increments",),
+}
+"""The fields ``add_fit_arguments`` sets."""
 
 
-def with_option(err: ParameterError) -> ParameterError:
-    """Return the error prefixed with the option the user typed (``--amplitude: amplitude_n …``)."""
-    text = str(err)
-    for field_name, option in OPTION_OF_FIELD.items():
-        if text.startswith(field_name + " ") and not text.startswith("--"):
-            return ParameterError(f"{option}: {text}")
+def dest(option: str) -> str:
+    """The attribute of the parsed options that holds an option (``--contact-size`` → ``contact_size``)."""
+    return option.lstrip("-").replace("-", "_")
+
+
+def in_user_terms(
+    err: ParameterError, args: argparse.Namespace, options: FieldOptions
+) -> ParameterError:
+    """Return the error naming the option the user typed instead of the field it sets.
+
+    The dataclasses check their fields by their own names (``check_range`` records the
+    name in ``ParameterError.parameter``); ``main`` calls this with the command's
+    ``FIELD_OPTIONS``, so "increments_per_stage must be in [2, 10000], got 1" reaches the
+    user as "--increments must be in [2, 10000], got 1". An option not given (None)
+    renames nothing: the value then came from a file or a default, named as it is there.
+
+    Args:
+        err: The error.
+        args: The parsed options.
+        options: Field → the options that set it.
+    """
+    for option in options.get(err.parameter or "", ()):
+        if getattr(args, dest(option), None) is not None:
+            return err.renamed(option)
     return err
 
 

@@ -18,12 +18,20 @@ from typing import TYPE_CHECKING
 
 from cad.errors import ParameterError
 from model.jsonio import dumps
-from studies.cli.args import add_fit_arguments
+from studies.cli.args import FIT_OPTIONS, add_fit_arguments
 from studies.outputs import check_writable_dir
 
 if TYPE_CHECKING:
     from model.spec import ModelSpec
     from validation.measurements import MeasurementSet
+
+
+FIELD_OPTIONS = {
+    **FIT_OPTIONS,
+    "default_rel_uncertainty": ("--uncertainty",),
+    "eta_rel_sigma": ("--uncertainty",),
+}
+"""Field → the options that set it: ``main`` words a refusal in the option the user typed."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -25,6 +25,14 @@ if TYPE_CHECKING:
     from validation.compare import CaseComparison, Comparison
 
 
+FIELD_OPTIONS = {
+    "k": ("--k",),
+    "default_rel_uncertainty": ("--uncertainty",),
+    "eta_rel_sigma": ("--uncertainty",),
+}
+"""Field → the options that set it: ``main`` words a refusal in the option the user typed."""
+
+
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add the ``compare`` subcommand."""
     p = sub.add_parser(

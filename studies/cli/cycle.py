@@ -11,7 +11,7 @@ from typing import Any
 
 from cad.errors import ParameterError
 from model.jsonio import dumps
-from studies.cli.args import add_geometry_arguments, settings_from_args, with_option
+from studies.cli.args import GEOMETRY_OPTIONS, add_geometry_arguments, settings_from_args
 from studies.outputs import check_writable_dir
 
 
@@ -109,10 +109,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if args.frames < 0:
         raise ParameterError(f"--frames must be ≥ 0, got {args.frames}")
-    try:
-        spec = _spec_from_args(args)
-    except ParameterError as err:
-        raise with_option(err) from err
+    spec = _spec_from_args(args)
     check_writable_dir(args.out, "--out")  # before any work; a kind without a mesh writes none
     point = DesignPoint(spec.cycle.amplitude_n)  # the model's own design values
     service = ModelService(geometry_dir=lambda _label: args.out)
@@ -228,6 +225,16 @@ HINGE_OPTIONS = {
 }
 """Hinge parameter → the option that sets it (a kind without that field refuses it)."""
 
+FIELD_OPTIONS = {
+    **GEOMETRY_OPTIONS,
+    "amplitude_n": ("--amplitude",),
+    "mu": ("--mu",),
+    "increments_per_stage": ("--increments",),
+    "clearance_increments": ("--increments",),
+    "n_cycles": ("--cycles",),
+}
+"""Field → the option that sets it: ``main`` words a refusal in the option (``--increments``)."""
+
 
 def _spec_from_args(args: argparse.Namespace) -> Any:
     """Return the ModelSpec of a model file or of the options, with the overrides applied."""
@@ -268,11 +275,7 @@ def _spec_from_args(args: argparse.Namespace) -> Any:
         }.items()
         if v is not None
     }
-    try:
-        cycle = dataclasses.replace(spec.cycle, **overrides)
-    except ParameterError as err:  # name the option the user typed, not only the field
-        raise with_option(err) from err
-    return dataclasses.replace(spec, cycle=cycle)
+    return dataclasses.replace(spec, cycle=dataclasses.replace(spec.cycle, **overrides))
 
 
 def _progress_bar(args: argparse.Namespace) -> Any:

@@ -14,7 +14,10 @@ import argparse
 from pathlib import Path
 
 from model.jsonio import dumps
-from studies.cli.args import add_fit_arguments
+from studies.cli.args import FIT_OPTIONS, add_fit_arguments
+
+FIELD_OPTIONS = {**FIT_OPTIONS, "candidates": ("--candidates",)}
+"""Field → the options that set it: ``main`` words a refusal in the option the user typed."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -14,6 +14,15 @@ from model.jsonio import dumps
 if TYPE_CHECKING:
     from mesh.settings import MeshSettings
 
+FIELD_OPTIONS = {
+    "amplitude_n": ("--amplitude",),
+    "clearance_mm": ("--clearance",),
+    "mu": ("--mu",),
+    "penalty_mpa_per_mm": ("--penalty",),
+    "stick_slope_mpa_per_mm": ("--stick-slope",),
+}
+"""Field → the options that set it: ``main`` words a refusal in the option the user typed."""
+
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add the ``export-inp`` subcommand."""

@@ -72,6 +72,17 @@ def _os_message(err: OSError) -> str:
     return f"{where}: {what}" if where else what
 
 
+def _in_user_terms(err: HingelabError, args: argparse.Namespace) -> HingelabError:
+    """The error naming the option the user typed (the command module's ``FIELD_OPTIONS``)."""
+    from cad.errors import ParameterError
+    from studies.cli.args import in_user_terms
+
+    if not isinstance(err, ParameterError):
+        return err
+    options = getattr(sys.modules[args.func.__module__], "FIELD_OPTIONS", {})
+    return in_user_terms(err, args, options)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the process exit status.
 
@@ -97,7 +108,7 @@ def _run(args: argparse.Namespace) -> int:
     try:
         return int(args.func(args))
     except HingelabError as err:
-        print(f"hingelab {args.command}: error: {err}", file=sys.stderr)
+        print(f"hingelab {args.command}: error: {_in_user_terms(err, args)}", file=sys.stderr)
         return 1
     except (
         OSError

@@ -7,8 +7,11 @@ import time
 from pathlib import Path
 
 from model.jsonio import dumps
-from studies.cli.args import add_geometry_arguments, settings_from_args
+from studies.cli.args import GEOMETRY_OPTIONS, add_geometry_arguments, settings_from_args
 from studies.outputs import mesh_summary
+
+FIELD_OPTIONS = GEOMETRY_OPTIONS
+"""Field → the options that set it: ``main`` words a refusal in the option the user typed."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -12,6 +12,9 @@ from pathlib import Path
 
 from model.jsonio import dumps
 
+FIELD_OPTIONS = {"mu": ("--mu",), "points": ("--points",)}
+"""Field → the options that set it: ``main`` words a refusal in the option the user typed."""
+
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add the ``paper`` subcommand."""

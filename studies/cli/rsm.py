@@ -25,6 +25,10 @@ if TYPE_CHECKING:  # the fit, plots and paper tables load scipy and matplotlib: 
     from rsm.polynomial import ResponseSurface
 
 
+FIELD_OPTIONS = {"degree": ("--degree",)}
+"""Field → the options that set it: ``main`` words a refusal in the option the user typed."""
+
+
 def register(subparsers: Any) -> None:
     """Add the ``rsm`` subcommand and its ``fit`` and ``paper`` actions."""
     p = subparsers.add_parser("rsm", help="fit and query polynomial response surfaces")

@@ -11,10 +11,10 @@ from fe.cycle.protocol import DEFAULT_MU
 from fe.kinds import DEFAULT_KIND, HingeKind, hinge_kind, kind_names
 from model.jsonio import dumps
 from studies.cli.args import (
+    GEOMETRY_OPTIONS,
     add_cluster_arguments,
     add_mesh_arguments,
     settings_from_args,
-    with_option,
 )
 from studies.options import params_with
 from studies.sweep import SweepSettings, run_sweep
@@ -101,6 +101,17 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 LEVEL_OPTIONS = {"--clearance": "clearance_mm", "--preload": "preload_n"}
 """Options that give the levels of a design variable by its name (``--levels`` for any)."""
 
+FIELD_OPTIONS = {
+    **GEOMETRY_OPTIONS,
+    "clearance_mm": ("--levels", "--clearance"),
+    "preload_n": ("--levels", "--preload"),
+    "amplitude_n": ("--amplitude",),
+    "mu": ("--mu",),
+    "increments_per_stage": ("--increments",),
+    "clearance_increments": ("--increments",),
+}
+"""Field → the options that set it: ``main`` words a refusal in the option the user typed."""
+
 
 def _levels(args: argparse.Namespace, kind: HingeKind) -> tuple[float, ...] | None:
     """The levels given on the command line, checked to be the kind's design variable."""
@@ -120,7 +131,7 @@ def _levels(args: argparse.Namespace, kind: HingeKind) -> tuple[float, ...] | No
     if not given:
         return None
     option, text = next(iter(given.items()))
-    return _floats(option.lstrip("-"), text)
+    return _floats(option, text)
 
 
 def _settings(args: argparse.Namespace) -> SweepSettings:
@@ -131,7 +142,7 @@ def _settings(args: argparse.Namespace) -> SweepSettings:
     )
     return SweepSettings(
         levels=_levels(args, kind),
-        amplitudes_n=_floats("amplitude", args.amplitude),
+        amplitudes_n=_floats("--amplitude", args.amplitude),
         mu=args.mu,
         increments_per_stage=args.increments if args.increments is not None else 20,
         clearance_increments=args.increments if args.increments is not None else 60,
@@ -146,10 +157,7 @@ def _settings(args: argparse.Namespace) -> SweepSettings:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``hingelab sweep``."""
-    try:
-        settings = _settings(args)
-    except ParameterError as err:
-        raise with_option(err) from err
+    settings = _settings(args)
 
     def report(rec: dict[str, object]) -> None:
         if not args.json:

@@ -18,6 +18,13 @@ from pathlib import Path
 from cad.errors import ParameterError
 from model.jsonio import dumps
 
+FIELD_OPTIONS = {
+    "noise_force_n": ("--noise-force",),
+    "noise_disp_mm": ("--noise-disp",),
+    "seed": ("--seed",),
+}
+"""Field → the options that set it: ``main`` words a refusal in the option the user typed."""
+
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add the ``synth`` subcommand."""
@@ -106,7 +113,13 @@ def run(args: argparse.Namespace) -> int:
     settings = SynthSettings(
         seed=args.seed, noise_force_n=args.noise_force, noise_disp_mm=args.noise_disp
     )
-    report = synthesize(spec, hidden, design_cases(design, spec.kind), settings, args.out)
+    try:
+        cases = design_cases(design, spec.kind, spec.hinge)
+    except ParameterError as err:
+        if args.cases is None:
+            raise
+        raise ParameterError(f"--cases {args.cases!r}: {err}") from err  # err names the column
+    report = synthesize(spec, hidden, cases, settings, args.out)
     if args.json:
         print(dumps(report.manifest))
     else:

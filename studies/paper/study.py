@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from cad.errors import check_range
 from fe.kinds import hinge_kind
 from model.jsonio import dumps, strict_json
 from studies.paper import checks as paper_checks
@@ -70,6 +71,9 @@ class PaperStudy:
     mu: float = 0.2
     workers: int = 1
     points: int = 0
+
+    def __post_init__(self) -> None:
+        check_range("points", self.points, 0, 10_000)
 
     def sweeps(self) -> dict[str, Any]:
         """The two sweeps' settings, by hinge (``general``, ``modified``).

@@ -218,7 +218,7 @@ def test_hinge_at_a_design_point_and_spec_checks():
     at = hinge_at(spec, DesignPoint(300.0, {"clearance_mm": 0.1}))
     assert at.clearance_mm == 0.1
     assert at.lug_material.name == "7075-T6"  # the rest of the model is kept
-    with pytest.raises(ParameterError, match=r"clearance_mm must be in \[0, 10\], got 11"):
+    with pytest.raises(ParameterError, match=r"clearance_mm must be in \[0, 5\], got 11"):
         hinge_at(spec, DesignPoint(300.0, {"clearance_mm": 11.0}))
     with pytest.raises(ParameterError, match="hinge kind must be one of"):
         ModelSpec("telescope", GeneralHingeParams())

@@ -66,7 +66,7 @@ def test_shipped_examples_load():
         (("increments = 6", 'increments = "six"'), r"increments must be an integer, got 'six'"),
         (
             ("[200.0, 400.0]", "[200.0, -5.0]"),
-            r"point 2 \(clearance_mm = 0, amplitude_N = -5\): amplitude_n",
+            r"point 2 \(clearance_mm = 0, amplitude_N = -5\): amplitude_N must be in",
         ),
         (
             ('preset = "coarse"', 'preset = "tiny"'),
@@ -252,7 +252,7 @@ def test_a_bearing_study_varies_preload_and_amplitude(tmp_path):
         ),
         (
             ("levels = [0.0, 100.0, 200.0]", "levels = [0.0, 600.0]"),
-            r"\[design\] point 3 \(preload_N = 600, amplitude_N = 200\): preload_n must be in "
+            r"\[design\] point 3 \(preload_N = 600, amplitude_N = 200\): preload_N must be in "
             r"\[0, 500\], got 600",
         ),
         (

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from cad.errors import DataError
-from validation.loops import loop_area, loop_distance, process_loop, split_stages
+from validation.loop_metrics import loop_area
+from validation.loops import loop_distance, process_loop, split_stages
 
 FG, D, PHI = 300.0, 0.004, 0.1  # N, mm, rad: η = tan φ
 

@@ -157,7 +157,7 @@ def test_response_is_not_linear_and_stiffens_with_preload(system: BearingSystem)
 
 
 def test_preload_out_of_range_is_refused(system: BearingSystem) -> None:
-    with pytest.raises(ParameterError, match=r"preload_n must be in \[0, 500\] N, got 600"):
+    with pytest.raises(ParameterError, match=r"preload_n must be in \[0, 500\], got 600"):
         preload_step(system, 600.0)
 
 

@@ -74,8 +74,8 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (["--amplitude", "-1"], "--amplitude: amplitude_n"),
-        (["--mu", "-0.3"], "--mu: mu"),
+        (["--amplitude", "-1"], "--amplitude must be in (0, 1e+06], got -1.0"),
+        (["--mu", "-0.3"], "--mu must be in [0, 2], got -0.3"),
         (
             ["--preload", "50"],
             "--preload does not apply to the general hinge (got --preload 50.0); it is a parameter of the bearing",
@@ -84,7 +84,7 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
             ["--hinge", "bearing", "--clearance", "0.1"],
             "--clearance does not apply to the bearing hinge (got --clearance 0.1); it is a parameter of the gen",
         ),
-        (["--hinge", "bearing", "--preload", "600"], "--preload: preload_n must be in [0, 500]"),
+        (["--hinge", "bearing", "--preload", "600"], "--preload must be in [0, 500], got 600.0"),
         (
             ["--hinge", "bearing", "--ball-model", "full", "--interfaces", "contact"],
             "ball_model = 'full' runs with interfaces = 'bonded' only",

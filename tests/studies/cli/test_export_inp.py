@@ -91,10 +91,10 @@ def test_penalty_contact_is_written_with_a_caution(tmp_path, capsys, model_file)
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [
-        (["--mu", "-1"], "mu must be in [0, 2], got -1.0"),
-        (["--amplitude", "0"], "amplitude_n must be in (0, 1e+06], got 0.0"),
-        (["--clearance", "-0.1"], "clearance_mm"),
-        (["--penalty", "0"], "penalty_mpa_per_mm"),
+        (["--mu", "-1"], "--mu must be in [0, 2], got -1.0"),
+        (["--amplitude", "0"], "--amplitude must be in (0, 1e+06], got 0.0"),
+        (["--clearance", "-0.1"], "--clearance must be in [0, 5], got -0.1"),
+        (["--penalty", "0"], "--penalty must be in (0, 1e+12], got 0.0"),
     ],
     ids=["mu", "amplitude", "clearance", "penalty"],
 )

@@ -29,8 +29,8 @@ def test_mesh_json_and_files(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (["--clearance", "-0.2"], "clearance_mm"),
-        (["--refinement", "9"], "refinement"),
+        (["--clearance", "-0.2"], "--clearance must be in [0, 5], got -0.2"),
+        (["--refinement", "9"], "--refinement must be an integer in [0, 4], got 9"),
         (["--hinge", "general", "--preload", "50"], "preload"),
     ],
     ids=["negative-clearance", "refinement", "preload-on-general"],
