@@ -1,7 +1,7 @@
 """Model features at the measured design points, with effects, cached.
 
 ``ModelEvaluator`` meshes, factorises and condenses the model once per clearance (lazily)
-and then runs the cycle for any set of effects (``fe.effects.run_cycle_with_effects``
+and then runs the cycle for any set of effects (``fe.effects.cycle.run_cycle_with_effects``
 with the reused base configurations: effects never refactorise). Effects that act only
 after the solve (their ``apply`` is the identity, e.g. ``frame_compliance``) cost no
 cycle: the loop computed without them is post-processed. Every run is cached by
@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from cad.errors import HingelabError
+from cad.errors import EffectError, HingelabError
 from model.spec import ModelSpec
 from validation.features import loop_features
 from validation.loops import process_loop
@@ -111,6 +111,8 @@ class ModelEvaluator:
                 res = self.service.run_point(spec, design)
                 # the free play crossed at zero force, as the grips see it (no chord area)
                 self._loops[key] = machine_path(res)
+            except EffectError:  # a broken user effect: its candidate fails, named
+                raise
             except HingelabError as err:  # a refused or non-converged effect value
                 logger.info("cycle failed at %s with %s: %s", point, dict(solve_effects), err)
                 self._loops[key] = None
@@ -139,7 +141,8 @@ class ModelEvaluator:
             if raw is None:
                 continue
             F, d = raw
-            d2 = post_process(F, d, post) if post else d
+            rate = self.cycle.force_rate_n_per_s  # the protocol's clock
+            d2 = post_process(F, d, post, force_rate_n_per_s=rate) if post else d
             try:
                 out[i] = loop_features(process_loop(F, d2, f"model {point}"))
             except HingelabError:
