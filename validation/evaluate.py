@@ -148,3 +148,59 @@ class ModelEvaluator:
             except HingelabError:
                 continue
         return out
+
+
+def split_post_only(effects: Effects) -> tuple[Effects, Effects]:
+    """(effects that change the solve, effects that act on the loop only), in registry order."""
+    from fe.effects.registry import validate_effects
+
+    every = validate_effects(effects)
+    solve = {n: p for n, p in every.items() if not is_post_only(n)}
+    post = {n: p for n, p in every.items() if is_post_only(n)}
+    return solve, post
+
+
+def loop_at_record_times(
+    spec: ModelSpec,
+    point: Any,
+    ref_force_n: FloatArray,
+    ref_time_s: FloatArray,
+    service: Any = None,
+) -> tuple[FloatArray, FloatArray]:
+    """The model's loop with its loop effects evaluated at a measured record's clock.
+
+    The cycle is run (through ``service``, a ``model.service.ModelService``) with the
+    effects that change the solve; its machine path (free play crossed at zero force) gets
+    the time at which the record passed the same force on the same ramp
+    (``fe.effects.history.time_from_reference``), and the loop effects (``post``) are
+    applied at those times. Without a time-dependent effect this is the loop the spec's
+    own run gives. How ``compare`` uses it: for a case whose record has ``time_s``, take
+    ``F, d = loop_at_record_times(spec, point_of(spec, case), case.loop.force_n,
+    case.loop.time_s, service)`` as the model's loop instead of ``machine_path()``.
+
+    Args:
+        spec: The model (its effects on).
+        point: The case's design point (``model.spec.DesignPoint``).
+        ref_force_n: The record's force, shape (m,) [N].
+        ref_time_s: The record's time, shape (m,) [s].
+        service: A ``ModelService`` to reuse (None: a new one).
+
+    Returns:
+        (force (n,) [N], displacement (n,) [mm]) of the model's path.
+
+    Raises:
+        DataError: A record with fewer load ramps than the model's path.
+        EffectError: A user's effect that fails.
+    """
+    from fe.effects.history import time_from_reference
+    from fe.effects.registry import post_process
+    from model.service import ModelService
+
+    solve, post = split_post_only(spec.effects)
+    run_spec = dataclasses.replace(spec, effects=solve)
+    result = (service or ModelService()).run_point(run_spec, point)
+    F, d = result.machine_path()
+    if not post:
+        return F, d
+    t = time_from_reference(F, ref_force_n, ref_time_s)
+    return F, post_process(F, d, post, time_s=t)

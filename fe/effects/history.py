@@ -100,9 +100,11 @@ def time_from_reference(
 
     The model's path (0 → +Fg → −Fg → +Fg …) is split into its ramps and so is the record
     (``record_turns``); the model's first ramp is matched with the record's first and its
-    last ramps with the record's last ones (a record may hold more cycles). On each ramp
-    the record's force is made monotone (its running maximum, or minimum going down:
-    noise does not turn time back) and the model's forces are looked up on it.
+    last ramps with the record's last ones (a record may hold more cycles). The first ramp
+    starts where the record last passed the model's start force before its first turn (a
+    dwell at zero before the loading is not part of it). On each ramp the record's force
+    is made monotone (its running maximum, or minimum going down: noise does not turn
+    time back) and the model's forces are looked up on it.
 
     Args:
         force_n: The model's force path, shape (n,) [N], from the unloaded start.
@@ -131,11 +133,14 @@ def time_from_reference(
     pick = [0, *range(n_ref - len(stages) + 1, n_ref)]
     t = np.zeros_like(F)
     for st, r in zip(stages, pick, strict=True):
-        seg = slice(turns[r], turns[r + 1] + 1)
-        f_seg, t_seg = Fr[seg], tr[seg]
         f_model = F[st]
-        up = f_model[-1] >= f_model[0]
-        sign = 1.0 if up else -1.0
+        sign = 1.0 if f_model[-1] >= f_model[0] else -1.0
+        start = turns[r]
+        if r == 0:  # the ramp starts where the record last left the model's start force
+            below = np.flatnonzero(sign * Fr[turns[0] : turns[1] + 1] <= sign * f_model[0])
+            start += int(below[-1]) if below.size else 0
+        seg = slice(start, turns[r + 1] + 1)
+        f_seg, t_seg = Fr[seg], tr[seg]
         envelope = np.maximum.accumulate(sign * f_seg)
         t[st] = np.interp(sign * f_model, envelope, t_seg)
     t = np.maximum.accumulate(t)
