@@ -323,6 +323,16 @@ def _lines(values: Mapping[str, Any]) -> list[str]:
     return [f"{k} = {_toml_value(v)}" for k, v in values.items() if v is not None]
 
 
+def _all_parameters(name: str, given: Mapping[str, float]) -> dict[str, float]:
+    """An enabled registered effect's parameters, absent ones at their defaults (so the file
+    reads back: ``read_model`` asks for every one); ``given`` as it is otherwise."""
+    from fe.effects.registry import REGISTRY
+
+    if not given or name not in REGISTRY:
+        return dict(given)
+    return {p.name: float(given.get(p.name, p.default)) for p in REGISTRY[name].params}
+
+
 def _from_text(source: EffectSource, model_path: Path) -> str:
     """A source as a ``from`` value: its file relative to the model file's folder."""
     folder = model_path.resolve().parent
@@ -368,7 +378,7 @@ def write_model(spec: ModelSpec, path: Path | str) -> Path:
         out += ["", f"[effects.{json.dumps(name, ensure_ascii=False)}]"]
         if name in spec.effect_sources:
             out += [f"from = {_toml_value(_from_text(spec.effect_sources[name], path))}"]
-        out += _lines(spec.effects.get(name, {}))
+        out += _lines(_all_parameters(name, spec.effects.get(name, {})))
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(out) + "\n", encoding="utf-8")
     return path
