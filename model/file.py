@@ -324,8 +324,10 @@ def _lines(values: Mapping[str, Any]) -> list[str]:
 
 
 def _all_parameters(name: str, given: Mapping[str, float]) -> dict[str, float]:
-    """An enabled registered effect's parameters, absent ones at their defaults (so the file
-    reads back: ``read_model`` asks for every one); ``given`` as it is otherwise."""
+    """An enabled registered effect's parameters, absent ones at their defaults.
+
+    So the file reads back (``read_model`` asks for every one); ``given`` as it is otherwise.
+    """
     from fe.effects.registry import REGISTRY
 
     if not given or name not in REGISTRY:

@@ -270,3 +270,10 @@ def test_the_protocol_time_is_the_force_path_at_the_stated_rate() -> None:
     F = np.array([0.0, 100.0, 400.0, 400.0, -400.0])
     assert protocol_time(F, 20.0).tolist() == [0.0, 5.0, 20.0, 20.0, 60.0]
     assert math.isclose(protocol_time(F, 40.0)[-1], 30.0)
+
+
+def test_the_docs_show_the_example_files_as_they_are() -> None:
+    """docs/user_effects.md holds the whole example and its test, verbatim."""
+    doc = (EXAMPLE.parents[3] / "docs" / "user_effects.md").read_text()
+    assert EXAMPLE.read_text() in doc
+    assert (EXAMPLE.parent / "test_damper.py").read_text() in doc
