@@ -332,7 +332,10 @@ def _all_parameters(name: str, given: Mapping[str, float]) -> dict[str, float]:
 
     if not given or name not in REGISTRY:
         return dict(given)
-    return {p.name: float(given.get(p.name, p.default)) for p in REGISTRY[name].params}
+    params = REGISTRY[name].params
+    if not set(given) <= {p.name for p in params}:  # checked against another registry
+        return dict(given)
+    return {p.name: float(given.get(p.name, p.default)) for p in params}
 
 
 def _from_text(source: EffectSource, model_path: Path) -> str:
