@@ -209,6 +209,7 @@ def _read_effects(
         if not isinstance(params, dict):
             raise ParameterError(f"{where}: must be a table of parameters")
         params = dict(params)
+        ranges: Mapping[str, tuple[float, float]]
         if "from" in params and registry is not NO_EFFECTS:
             sources[name], effect = _user_effect(name, params.pop("from"), path, where)
             ranges = {p.name: (p.lo, p.hi) for p in effect.params}

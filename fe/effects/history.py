@@ -144,4 +144,4 @@ def time_from_reference(
         envelope = np.maximum.accumulate(sign * f_seg)
         t[st] = np.interp(sign * f_model, envelope, t_seg)
     t = np.maximum.accumulate(t)
-    return t - t[0]
+    return np.asarray(t - t[0], dtype=np.float64)

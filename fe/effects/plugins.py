@@ -189,7 +189,7 @@ def check_effect(obj: Any, where: str) -> Effect:
                 f"{where}: class {what} is not a subclass of fe.effects.base.Effect"
             )
         try:
-            obj = obj()
+            obj = obj()  # type: ignore[call-arg]  # a subclass gives its fields defaults
         except Exception as err:
             raise ParameterError(f"{where}: {what}() failed: {_error_text(err)}") from err
     elif not isinstance(obj, Effect):
@@ -210,7 +210,8 @@ def check_effect(obj: Any, where: str) -> Effect:
     names = [p.name for p in params]
     if len(set(names)) != len(names) or not all(isinstance(n, str) and n for n in names):
         raise ParameterError(f"{where}: {cls}.params must have unique names, got {names}")
-    return obj
+    effect: Effect = obj
+    return effect
 
 
 def named(effect: Effect, name: str, where: str) -> Effect:
