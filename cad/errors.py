@@ -86,6 +86,10 @@ class DataError(HingelabError, ValueError):
     """Input data (a table or measurement file) is malformed; the message names file, row, column."""
 
 
+class EffectError(DataError):
+    """A user's effect (a file or a plug-in) failed a call, naming file, class and hook."""
+
+
 def check_range(
     name: str, value: float, lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = False
 ) -> None:

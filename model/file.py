@@ -13,7 +13,11 @@ dataclass default)::
     [cycle]            the fields of CycleSettings except mu (amplitude_n is the default
                        amplitude; ``compare`` runs each case at its own)
     [effects.NAME]     parameters of a switched-on physical effect, checked against a
-                       registry of known effects and their parameter ranges
+                       registry of known effects and their parameter ranges; a user's
+                       own effect adds ``from = "effects/damper.py:Damper"`` (the file
+                       relative to this one, and the Effect class in it). With ``from``
+                       and no parameters the effect is only declared: off, but known to
+                       ``diagnose``, ``calibrate`` and ``synth``.
 
 Unknown sections and keys are refused by name with the allowed ones listed; a wrong
 type is refused naming the key; out-of-range values are refused by the dataclasses'
@@ -28,6 +32,7 @@ from __future__ import annotations
 import enum
 import json
 import math
+import os
 import tomllib
 import types
 import typing
@@ -39,6 +44,7 @@ from typing import Any
 from cad.errors import DataError, ParameterError, check_range
 from cad.materials import Material
 from fe.cycle.protocol import CycleSettings
+from fe.effects.plugins import EffectSource
 from fe.kinds import hinge_kind
 from mesh.settings import MeshSettings
 from model.spec import ModelSpec
@@ -62,19 +68,21 @@ class _Effect(typing.Protocol):
 
 EffectRegistry = Mapping[str, Mapping[str, tuple[float, float]]] | Mapping[str, _Effect]
 """Effect name → parameter name → (lowest, highest) allowed value; or effect name → an
-object with ``params`` (``fe.effects.REGISTRY``: each ParamSpec gives name, lo, hi)."""
+object with ``params`` (``fe.effects.registry.REGISTRY``: each ParamSpec gives name, lo, hi)."""
 
 
-def _ranges(registry: EffectRegistry) -> dict[str, Mapping[str, tuple[float, float]]]:
-    """Return effect → parameter → (lo, hi) from either registry shape."""
-    out: dict[str, Mapping[str, tuple[float, float]]] = {}
-    for name, entry in registry.items():
-        params = getattr(entry, "params", None)
-        if params is None:
-            out[name] = typing.cast(Mapping[str, tuple[float, float]], entry)
-        else:
-            out[name] = {p.name: (p.lo, p.hi) for p in params}
-    return out
+def _ranges(registry: EffectRegistry, name: str) -> Mapping[str, tuple[float, float]] | None:
+    """Return parameter → (lo, hi) of one effect from either registry shape (None: unknown).
+
+    Only that effect is looked up (a broken plug-in elsewhere does not stop the file).
+    """
+    if name not in registry:
+        return None
+    entry = registry[name]
+    params = getattr(entry, "params", None)
+    if params is None:
+        return typing.cast(Mapping[str, tuple[float, float]], entry)
+    return {p.name: (p.lo, p.hi) for p in params}
 
 
 NO_EFFECTS: EffectRegistry = types.MappingProxyType({})
@@ -177,19 +185,45 @@ def _read_materials(cls: Any, table: Mapping[str, Any], path: Path) -> dict[str,
     return out
 
 
+def _user_effect(name: str, text: Any, path: Path, where: str) -> tuple[EffectSource, Any]:
+    """The source a ``from`` value names, registered; and the effect."""
+    from fe.effects.plugins import source_of
+    from fe.effects.registry import register_source
+
+    if not isinstance(text, str):
+        raise ParameterError(f"{where}: from must be a string 'file.py:ClassName', got {text!r}")
+    try:
+        source = source_of(text, path.parent)
+        return source, register_source(name, source)
+    except ParameterError as err:
+        raise ParameterError(f"{where}: {err}") from err
+
+
 def _read_effects(
     table: Mapping[str, Any], registry: EffectRegistry, path: Path
-) -> dict[str, dict[str, float]]:
-    registry = _ranges(registry)
-    known = ", ".join(registry) or "(none yet)"
+) -> tuple[dict[str, dict[str, float]], dict[str, EffectSource]]:
     out = {}
+    sources = {}
     for name, params in table.items():
         where = _where(path, f"effects.{name}")
-        if name not in registry:
-            raise ParameterError(f"{where}: unknown effect {name!r}; known effects: {known}")
         if not isinstance(params, dict):
             raise ParameterError(f"{where}: must be a table of parameters")
-        ranges = registry[name]
+        params = dict(params)
+        ranges: Mapping[str, tuple[float, float]]
+        if "from" in params and registry is not NO_EFFECTS:
+            sources[name], effect = _user_effect(name, params.pop("from"), path, where)
+            ranges = {p.name: (p.lo, p.hi) for p in effect.params}
+            if not params:
+                continue  # declared, not switched on
+        else:
+            try:
+                found = _ranges(registry, name)
+            except ParameterError as err:  # a plug-in that does not load
+                raise ParameterError(f"{where}: {err}") from err
+            if found is None:
+                known = ", ".join(registry) or "(none yet)"
+                raise ParameterError(f"{where}: unknown effect {name!r}; known effects: {known}")
+            ranges = found
         _check_keys(params, list(ranges), where)
         missing = [p for p in ranges if p not in params]
         if missing:
@@ -202,7 +236,7 @@ def _read_effects(
             except ParameterError as err:
                 raise ParameterError(f"{path}: {err}") from err
         out[name] = checked
-    return out
+    return out, sources
 
 
 def read_model(path: Path | str, registry: EffectRegistry | None = None) -> ModelSpec:
@@ -211,8 +245,10 @@ def read_model(path: Path | str, registry: EffectRegistry | None = None) -> Mode
     Args:
         path: The file.
         registry: Known effects and their parameter ranges (effect → parameter → (lo, hi),
-            or objects with ``params``); None: ``fe.effects.REGISTRY``, every physical
-            effect the solver knows (what ``hingelab calibrate`` writes).
+            or objects with ``params``); None: ``fe.effects.registry.REGISTRY``, every
+            physical effect the solver knows (what ``hingelab calibrate`` writes). A
+            table with ``from`` is the user's own effect, whatever the registry (except
+            ``NO_EFFECTS``): its ranges are its class's.
 
     Returns:
         The model.
@@ -266,8 +302,8 @@ def read_model(path: Path | str, registry: EffectRegistry | None = None) -> Mode
     except ParameterError as err:  # μ is written in [friction], the rest in [cycle]
         section = "friction" if err.parameter == "mu" else "cycle"
         raise ParameterError(f"{_where(path, section)}: {err}") from err
-    effects = _read_effects(_table(doc, "effects", str(path)), registry, path)
-    return ModelSpec(kind, params, mesh, cycle, effects)
+    effects, sources = _read_effects(_table(doc, "effects", str(path)), registry, path)
+    return ModelSpec(kind, params, mesh, cycle, effects, sources)
 
 
 def _toml_value(value: Any) -> str:
@@ -290,6 +326,31 @@ def _toml_value(value: Any) -> str:
 
 def _lines(values: Mapping[str, Any]) -> list[str]:
     return [f"{k} = {_toml_value(v)}" for k, v in values.items() if v is not None]
+
+
+def _all_parameters(name: str, given: Mapping[str, float]) -> dict[str, float]:
+    """An enabled registered effect's parameters, absent ones at their defaults.
+
+    So the file reads back (``read_model`` asks for every one); ``given`` as it is otherwise.
+    """
+    from fe.effects.registry import REGISTRY
+
+    if not given or name not in REGISTRY:
+        return dict(given)
+    params = REGISTRY[name].params
+    if not set(given) <= {p.name for p in params}:  # checked against another registry
+        return dict(given)
+    return {p.name: float(given.get(p.name, p.default)) for p in params}
+
+
+def _from_text(source: EffectSource, model_path: Path) -> str:
+    """A source as a ``from`` value: its file relative to the model file's folder."""
+    folder = model_path.resolve().parent
+    try:
+        rel = os.path.relpath(source.path, folder)
+    except ValueError:  # another drive (Windows): keep the absolute path
+        rel = source.path
+    return f"{Path(rel).as_posix()}:{source.attr}"
 
 
 def write_model(spec: ModelSpec, path: Path | str) -> Path:
@@ -323,8 +384,11 @@ def write_model(spec: ModelSpec, path: Path | str) -> Path:
     out += ["", "[friction]", f"mu = {_toml_value(spec.cycle.mu)}"]
     cycle = {k: getattr(spec.cycle, k) for k in _plain_fields(CycleSettings, skip=("mu",))}
     out += ["", "[cycle]", *_lines(cycle)]
-    for name, params in spec.effects.items():
-        out += ["", f"[effects.{json.dumps(name, ensure_ascii=False)}]", *_lines(params)]
+    for name in dict.fromkeys([*spec.effects, *spec.effect_sources]):
+        out += ["", f"[effects.{json.dumps(name, ensure_ascii=False)}]"]
+        if name in spec.effect_sources:
+            out += [f"from = {_toml_value(_from_text(spec.effect_sources[name], path))}"]
+        out += _lines(_all_parameters(name, spec.effects.get(name, {})))
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(out) + "\n", encoding="utf-8")
     return path

@@ -108,11 +108,12 @@ def check_spec(spec: ModelSpec) -> None:
 
     Raises:
         ParameterError: For an effect that does not act on the model's hinge kind
-            (``fe.effects.Effect.applies_to``), or a combination the kind refuses
-            (``HingeKind.check``).
+            (``fe.effects.base.Effect.applies_to``), a combination the kind refuses
+            (``HingeKind.check``), or a user's effect file that is missing or changed.
     """
     from fe.effects.registry import REGISTRY
 
+    spec.register_sources()  # this spec's versions of its files (another may have replaced them)
     kind = spec.hinge_kind
     other = sorted(
         n for n in spec.effects if n in REGISTRY and not REGISTRY[n].applies_to(kind.name)

@@ -24,6 +24,7 @@ from typing import Any
 from cad.errors import ParameterError, check_range
 from fe.contact.state import ContactSettings
 from fe.cycle.protocol import CycleSettings
+from fe.effects.plugins import EffectSource
 from fe.kinds import HingeKind, hinge_kind
 from mesh.settings import MeshSettings
 
@@ -39,6 +40,11 @@ class ModelSpec:
         mesh: Mesh settings.
         cycle: Load protocol and solver options, including the friction coefficient μ.
         effects: Enabled effect → its parameters (read-only mappings).
+        effect_sources: A user's effect → the file and class it comes from (MODEL.toml
+            ``from``), with the file's hash: enabled ones (in ``effects``) and ones only
+            declared (diagnose and calibrate may try them). Each is registered
+            (``fe.effects.registry.register_source``) when the spec is made, in this
+            process or in a worker that receives the spec: the spec carries its effects.
     """
 
     kind: str
@@ -46,6 +52,9 @@ class ModelSpec:
     mesh: MeshSettings = field(default_factory=MeshSettings)
     cycle: CycleSettings = field(default_factory=CycleSettings)
     effects: Mapping[str, Mapping[str, float]] = field(
+        default_factory=lambda: types.MappingProxyType({})
+    )
+    effect_sources: Mapping[str, EffectSource] = field(
         default_factory=lambda: types.MappingProxyType({})
     )
 
@@ -59,6 +68,34 @@ class ModelSpec:
             )
         frozen = {k: types.MappingProxyType(dict(v)) for k, v in self.effects.items()}
         object.__setattr__(self, "effects", types.MappingProxyType(frozen))
+        object.__setattr__(
+            self, "effect_sources", types.MappingProxyType(dict(self.effect_sources))
+        )
+        self.register_sources()
+
+    def register_sources(self) -> None:
+        """Register this spec's own effect files (the versions its hashes name).
+
+        Raises:
+            ParameterError: A missing or changed file, or one that holds no effect.
+        """
+        from fe.effects.registry import register_source
+
+        for name, source in self.effect_sources.items():
+            register_source(name, source)
+
+    def __reduce__(self) -> tuple[Any, ...]:  # through __init__: a worker registers the files
+        return (
+            ModelSpec,
+            (
+                self.kind,
+                self.hinge,
+                self.mesh,
+                self.cycle,
+                {k: dict(v) for k, v in self.effects.items()},
+                dict(self.effect_sources),
+            ),
+        )
 
     @property
     def hinge_kind(self) -> HingeKind:
@@ -240,12 +277,32 @@ def geometry_key(spec: ModelSpec, point: DesignPoint) -> str:
     )
 
 
+def effect_code(spec: ModelSpec) -> dict[str, str]:
+    """Enabled effect that is not built in → SHA-256 of the source that defines it.
+
+    A user's file is keyed by the hash the spec holds (the version it was read as); an
+    entry point's by its module's source file. Editing either gives another result key.
+    """
+    from fe.effects.registry import effect_entry
+
+    out = {}
+    for name in spec.effects:
+        if name in spec.effect_sources:
+            out[name] = spec.effect_sources[name].sha256
+        else:
+            entry = effect_entry(name)
+            if not entry.builtin:
+                out[name] = entry.source_hash
+    return out
+
+
 def result_key(spec: ModelSpec, point: DesignPoint) -> str:
     """Hash of everything that determines the cycle at ``point``.
 
     The whole specification (its own amplitude replaced by the point's), the design
     point, the contact-solver defaults and the package version; a structure-changing
-    effect is keyed as the structure it makes (``resolve_structural``).
+    effect is keyed as the structure it makes (``resolve_structural``); an effect that
+    is not built in, by the hash of its source (``effect_code``).
     """
     spec = resolve_structural(spec)
     cycle = dataclasses.replace(spec.cycle, amplitude_n=point.amplitude_n)
@@ -256,6 +313,7 @@ def result_key(spec: ModelSpec, point: DesignPoint) -> str:
             "mesh": spec.mesh,
             "cycle": cycle,
             "effects": spec.effects,
+            "effect_code": effect_code(spec),
             "point": complete_point(spec, point).key_fields(),
             "contact": ContactSettings(),
             "version": package_version(),

@@ -27,8 +27,9 @@ from fe.cycle.result import CycleResult, Increment
 
 logger = logging.getLogger(__name__)
 
-FORMAT_VERSION = 2
-"""2: increments carry their tangent stiffness (1: without; read as a miss)."""
+FORMAT_VERSION = 3
+"""3: increments carry the work effects dissipate; 2: their tangent stiffness (older: read as
+a miss)."""
 
 _INC_FIELDS = tuple(f.name for f in dataclasses.fields(Increment))
 

@@ -54,7 +54,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy import stats
 
-from cad.errors import ParameterError
+from cad.errors import EffectError, HingelabError, ParameterError
 from model.spec import ModelSpec
 from validation.candidate_fit import (
     CandidateFit,
@@ -348,10 +348,14 @@ def diagnose(
     skipped: dict[str, str] = {}
     names = []
     for name in REGISTRY:
+        try:  # a plug-in that does not load is a failed candidate, named
+            why = REGISTRY[name].zero_clearance_reason
+        except HingelabError as err:
+            skipped[name] = f"failed: {err}"
+            continue
         if name in spec.effects:
             skipped[name] = "already in the model"
-        elif REGISTRY[name].zero_clearance_reason and any(c > 0 for c in meas.clearance_mm or ()):
-            why = REGISTRY[name].zero_clearance_reason
+        elif why and any(c > 0 for c in meas.clearance_mm or ()):
             skipped[name] = f"needs Δr = 0 at every case ({why})"
         elif (refused := refusal(spec, name)) is not None:
             skipped[name] = refused
@@ -359,9 +363,13 @@ def diagnose(
             skipped[name] = "not among the candidates asked for"
         else:
             names.append(name)
-    fits = sorted(
-        (fit_candidate(ev, name, meas, base, len(names), s) for name in names), key=lambda f: f.chi2
-    )
+    fits = []
+    for name in names:
+        try:
+            fits.append(fit_candidate(ev, name, meas, base, len(names), s))
+        except EffectError as err:  # a user's effect that fails: the others still run
+            skipped[name] = f"failed: {err}"
+    fits.sort(key=lambda f: f.chi2)
     verdict, effects, message, sep = _verdict(fits, c0, n, limit, meas, s)
     return Diagnosis(
         verdict=verdict,

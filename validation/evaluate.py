@@ -1,7 +1,7 @@
 """Model features at the measured design points, with effects, cached.
 
 ``ModelEvaluator`` meshes, factorises and condenses the model once per clearance (lazily)
-and then runs the cycle for any set of effects (``fe.effects.run_cycle_with_effects``
+and then runs the cycle for any set of effects (``fe.effects.cycle.run_cycle_with_effects``
 with the reused base configurations: effects never refactorise). Effects that act only
 after the solve (their ``apply`` is the identity, e.g. ``frame_compliance``) cost no
 cycle: the loop computed without them is post-processed. Every run is cached by
@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from cad.errors import HingelabError
+from cad.errors import EffectError, HingelabError
 from model.spec import ModelSpec
 from validation.features import loop_features
 from validation.loops import process_loop
@@ -111,6 +111,8 @@ class ModelEvaluator:
                 res = self.service.run_point(spec, design)
                 # the free play crossed at zero force, as the grips see it (no chord area)
                 self._loops[key] = machine_path(res)
+            except EffectError:  # a broken user effect: its candidate fails, named
+                raise
             except HingelabError as err:  # a refused or non-converged effect value
                 logger.info("cycle failed at %s with %s: %s", point, dict(solve_effects), err)
                 self._loops[key] = None
@@ -139,9 +141,66 @@ class ModelEvaluator:
             if raw is None:
                 continue
             F, d = raw
-            d2 = post_process(F, d, post) if post else d
+            rate = self.cycle.force_rate_n_per_s  # the protocol's clock
+            d2 = post_process(F, d, post, force_rate_n_per_s=rate) if post else d
             try:
                 out[i] = loop_features(process_loop(F, d2, f"model {point}"))
             except HingelabError:
                 continue
         return out
+
+
+def split_post_only(effects: Effects) -> tuple[Effects, Effects]:
+    """(effects that change the solve, effects that act on the loop only), in registry order."""
+    from fe.effects.registry import validate_effects
+
+    every = validate_effects(effects)
+    solve = {n: p for n, p in every.items() if not is_post_only(n)}
+    post = {n: p for n, p in every.items() if is_post_only(n)}
+    return solve, post
+
+
+def loop_at_record_times(
+    spec: ModelSpec,
+    point: Any,
+    ref_force_n: FloatArray,
+    ref_time_s: FloatArray,
+    service: Any = None,
+) -> tuple[FloatArray, FloatArray]:
+    """The model's loop with its loop effects evaluated at a measured record's clock.
+
+    The cycle is run (through ``service``, a ``model.service.ModelService``) with the
+    effects that change the solve; its machine path (free play crossed at zero force) gets
+    the time at which the record passed the same force on the same ramp
+    (``fe.effects.history.time_from_reference``), and the loop effects (``post``) are
+    applied at those times. Without a time-dependent effect this is the loop the spec's
+    own run gives. How ``compare`` uses it: for a case whose record has ``time_s``, take
+    ``F, d = loop_at_record_times(spec, point_of(spec, case), case.loop.force_n,
+    case.loop.time_s, service)`` as the model's loop instead of ``machine_path()``.
+
+    Args:
+        spec: The model (its effects on).
+        point: The case's design point (``model.spec.DesignPoint``).
+        ref_force_n: The record's force, shape (m,) [N].
+        ref_time_s: The record's time, shape (m,) [s].
+        service: A ``ModelService`` to reuse (None: a new one).
+
+    Returns:
+        (force (n,) [N], displacement (n,) [mm]) of the model's path.
+
+    Raises:
+        DataError: A record with fewer load ramps than the model's path.
+        EffectError: A user's effect that fails.
+    """
+    from fe.effects.history import time_from_reference
+    from fe.effects.registry import post_process
+    from model.service import ModelService
+
+    solve, post = split_post_only(spec.effects)
+    run_spec = dataclasses.replace(spec, effects=solve)
+    result = (service or ModelService()).run_point(run_spec, point)
+    F, d = result.machine_path()
+    if not post:
+        return F, d
+    t = time_from_reference(F, ref_force_n, ref_time_s)
+    return F, post_process(F, d, post, time_s=t)

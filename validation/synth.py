@@ -428,6 +428,7 @@ def _synthesize(
             spec.cycle,
             increments_per_stage=n_inc,
             clearance_increments=SYNTH_INCREMENT_FACTOR * spec.cycle.clearance_increments,
+            force_rate_n_per_s=settings.force_rate_n_per_s,  # the machine's clock
         ),
         effects=truth,
     )

@@ -54,7 +54,10 @@ def bearing_summary(result: CycleResult, system: Any, params: Any) -> dict[str, 
         },
         "balls": ball_table(system, result),
         "energy_balance_abs_Nmm": abs(
-            m["W_cycle_Nmm"] - m["elastic_energy_change_Nmm"] - m["friction_work_Nmm"]
+            m["W_cycle_Nmm"]
+            - m["elastic_energy_change_Nmm"]
+            - m["friction_work_Nmm"]
+            - m["effect_work_Nmm"]
         ),
         "energy_balance_note": "nothing can dissipate (bonded interfaces, free-rolling balls): "
         "W_cycle is the loop's quadrature error, compare energy_balance_abs_Nmm with U_max_Nmm",

@@ -28,6 +28,13 @@ steel on anodised aluminium with a dry-film lubricant, the usual state of a spac
 (dry unlubricated pairs reach 0.4–0.6, MoS₂ films 0.05–0.15)."""
 
 
+DEFAULT_FORCE_RATE = 20.0
+"""Default force rate of the load ramps [N/s]: the synthetic test machine's
+(``validation.synth.SynthSettings``); a 400 N loop then takes 100 s. Only a time-dependent
+effect (``fe.effects.base.History``) sees it; set ``[cycle] force_rate_n_per_s`` to the rate
+of the test the model is compared with."""
+
+
 @dataclass(frozen=True)
 class CycleSettings:
     """Load protocol and solver options of a hysteresis cycle.
@@ -55,6 +62,10 @@ class CycleSettings:
         blas_threads: BLAS threads for the dense contact solves. Their matrices are a
             few hundred to a few thousand wide, where one thread is faster than two
             (benchmarks/bench_cycle.txt, 'CycleSettings.blas_threads').
+        force_rate_n_per_s: Rate of the force ramps [N/s]: the protocol's clock
+            (``fe.effects.history.protocol_time``), seen only by time-dependent effects;
+            a measured record's own time replaces it where the model is compared with
+            the record (``fe.effects.history.time_from_reference``).
     """
 
     amplitude_n: float = 400.0
@@ -68,6 +79,7 @@ class CycleSettings:
     blas_threads: int = 1
     contact_window: float = 0.5
     clearance_increments: int = 60
+    force_rate_n_per_s: float = DEFAULT_FORCE_RATE
 
     def __post_init__(self) -> None:
         check_range("amplitude_n", self.amplitude_n, 0.0, 1e6, lo_open=True)
@@ -79,6 +91,7 @@ class CycleSettings:
         check_range("blas_threads", self.blas_threads, 1, 64)
         check_range("contact_window", self.contact_window, 0.0, 10.0)
         check_range("clearance_increments", self.clearance_increments, 2, 10_000)
+        check_range("force_rate_n_per_s", self.force_rate_n_per_s, 0.0, 1e9, lo_open=True)
 
     def contact(self) -> ContactSettings:
         """The contact-solver settings of the cycle (μ, tolerance, iteration budget)."""

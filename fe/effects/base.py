@@ -1,7 +1,12 @@
 """The effect framework: parameters, the context an effect sees, and the two hooks.
 
-``Effect`` is the base of every candidate effect in ``fe.effects.models``; the registry and
-the cycle with effects are in ``fe.effects`` (which explains the two hooks).
+``Effect`` is the base of every candidate effect (the built-ins in ``fe.effects.models``,
+a user's own in a file or an installed package, ``fe.effects.plugins``); the registry and
+the cycle with effects are in ``fe.effects.registry`` (which explains the two hooks).
+The ``post`` hook sees the loop's whole ``History`` (force, displacement and time), so a
+rate- or time-dependent effect (a viscous element, creep) can be written; it returns the
+new displacement, or a ``PostResult`` that also says how much of the work done on it is
+stored (the rest is dissipated: ``fe.effects.registry.post_increments``).
 """
 
 from __future__ import annotations
@@ -23,6 +28,66 @@ from fe.structure.condensed import Condensed
 FloatArray = npt.NDArray[np.float64]
 Values = Mapping[str, float]
 """Parameter name → value of one effect."""
+
+
+def _frozen(values: npt.ArrayLike, name: str) -> FloatArray:
+    a = np.array(values, dtype=np.float64, copy=True)
+    if a.ndim != 1:
+        raise ParameterError(f"History.{name} must have shape (n,), got {a.shape}")
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class History:
+    """The loop an effect's ``post`` hook acts on: every sample from the unloaded start.
+
+    The arrays are read-only copies (an effect cannot change its caller's data).
+
+    Attributes:
+        force_n: Force, shape (n,) [N]; ``force_n[0] = 0`` (the unloaded start).
+        disp_mm: Hinge displacement (with the effects applied before this one), shape (n,) [mm].
+        time_s: Time of each sample from the start, non-decreasing, shape (n,) [s]: the
+            protocol's (``CycleSettings.force_rate_n_per_s``) or a measured record's
+            (``fe.effects.history.time_from_reference``).
+    """
+
+    force_n: FloatArray
+    disp_mm: FloatArray
+    time_s: FloatArray
+
+    def __post_init__(self) -> None:
+        for name in ("force_n", "disp_mm", "time_s"):
+            object.__setattr__(self, name, _frozen(getattr(self, name), name))
+        n = self.force_n.shape
+        if self.disp_mm.shape != n or self.time_s.shape != n:
+            raise ParameterError(
+                f"History: force_n {n}, disp_mm {self.disp_mm.shape} and time_s "
+                f"{self.time_s.shape} must have one shape"
+            )
+        if n[0] > 1 and np.any(np.diff(self.time_s) < 0.0):
+            raise ParameterError("History.time_s must not decrease")
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.force_n.shape[0])
+
+
+@dataclass(frozen=True)
+class PostResult:
+    """What a ``post`` hook may return instead of the bare displacement.
+
+    Attributes:
+        disp_mm: Displacement seen at the grips, shape (n,) [mm].
+        stored_energy_nmm: Energy stored in the effect's element at each sample, shape
+            (n,) [N·mm]; the rest of the work ``∫F dh`` done on it (h its displacement) is
+            dissipated. None: all of it is stored (a rate-independent element ``h(F)``,
+            whose work over a closed loop is zero).
+    """
+
+    disp_mm: FloatArray
+    stored_energy_nmm: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -149,12 +214,14 @@ class Effect:
                 f"clearance ({self.zero_clearance_reason}): clearance_mm must be 0"
             )
 
-    def post(self, force_n: FloatArray, disp_mm: FloatArray, values: Values) -> FloatArray:
+    def post(self, history: History, values: Values) -> FloatArray | PostResult:
         """Return the displacement seen at the grips, shape (n,) [mm] (a new array).
 
+        It must map the unloaded start (F = 0 at t = 0) to δ = 0. Return a ``PostResult``
+        to say how much energy the element stores (a viscous one dissipates).
+
         Args:
-            force_n: Force, shape (n,) [N].
-            disp_mm: Hinge displacement, shape (n,) [mm].
+            history: Force, displacement and time of every sample (read-only).
             values: Parameter → value.
         """
-        return np.array(disp_mm, dtype=np.float64, copy=True)
+        return np.array(history.disp_mm, dtype=np.float64, copy=True)

@@ -1,6 +1,6 @@
 """The candidate effects: each a mechanism with bounded parameters and a stated fingerprint.
 
-Registered, in application order, in ``fe.effects.REGISTRY``; the fingerprint tables in the
+Registered, in application order, in ``fe.effects.registry.REGISTRY``; the fingerprint tables in the
 docstrings are measured as described in ``fe.effects``.
 """
 
@@ -16,6 +16,7 @@ from fe.effects.base import (
     Effect,
     EffectContext,
     FloatArray,
+    History,
     ParamSpec,
     Values,
     add_diagonal,
@@ -58,11 +59,9 @@ class FrameCompliance(Effect):
         ),
     )
 
-    def post(self, force_n: FloatArray, disp_mm: FloatArray, values: Values) -> FloatArray:
+    def post(self, history: History, values: Values) -> FloatArray:
         """Return ``δ + C_f F``, shape (n,) [mm]."""
-        return np.asarray(disp_mm, dtype=np.float64) + values["compliance_mm_per_n"] * np.asarray(
-            force_n, dtype=np.float64
-        )
+        return history.disp_mm + values["compliance_mm_per_n"] * history.force_n
 
 
 @dataclass(frozen=True)
@@ -186,7 +185,7 @@ class Interference(Effect):
     interference at the bearing line (out-of-roundness, burr), not a press fit.
 
     FINGERPRINT (δ_i = 1e-3 mm; δ measured from the prestressed zero δ₀ =
-    0.84 δ_i, see ``fe.effects.prestressed_zero``): a stiffer loop (δ(+Fg) ×0.53 at 100 N, ×0.55 at
+    0.84 δ_i, see ``fe.effects.cycle.prestressed_zero``): a stiffer loop (δ(+Fg) ×0.53 at 100 N, ×0.55 at
     400 N), almost closed at 100 N (the clamp keeps the contact stuck: η ×0.16) and wider
     than the baseline at 400 N (η ×1.44). The first loop after the initial loading does
     not quite close (1.1 % of δ_max at 400 N, 6 increments): the stick zones ratchet.
@@ -250,7 +249,7 @@ class FaceFriction(Effect):
     during the cycle follows the arms' stiffness, not a bolt's. At F = 0 the clamp also
     presses the holes onto the pin a little (40 N summed over the pin points at 300 N).
     The clamp is applied with the first load increment (the cycle has no separate
-    preload stage); the prestressed zero δ₀ (``fe.effects.prestressed_zero``)
+    preload stage); the prestressed zero δ₀ (``fe.effects.cycle.prestressed_zero``)
     is the zero of the loop. The energy balance (friction work at pin and face points
     against the loop area) still closes to round-off. With clamp 0 the faces stay apart
     (the baseline exactly).

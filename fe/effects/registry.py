@@ -1,4 +1,10 @@
-"""Candidate physical effects that extend the baseline hinge model (elasticity + Coulomb contact).
+"""The registry of physical effects, and their two hooks applied in order.
+
+Effects extend the baseline hinge model (elasticity + Coulomb contact). They come from
+this package (``BUILTIN``), from installed packages (entry-point group
+``hingelab.effects``, ``name = "module:attr"``), and from a user's own files named in
+MODEL.toml (``[effects.NAME] from = "file.py:Class"``, ``register_source``); ``REGISTRY``
+is a live read-only view of all of them, in the order they are applied.
 
 An effect acts in one (or both) of two places, so that none of them needs a new mesh or a
 new factorisation:
@@ -9,13 +15,13 @@ new factorisation:
   to the diagonal blocks of ``W``; an interference shifts the normal gap ``w0``; face
   friction appends contact points (condensed with the factorised hinge ``ctx.system``,
   calibrated with the cycle's μ ``ctx.settings``).
-* ``post(force_n, disp_mm, values)`` on the computed loop: a displacement in series with
-  the hinge, a function of the force only (it must map F = 0 to 0).
+* ``post(history, values)`` on the computed loop (``fe.effects.base.History``: force,
+  displacement and time): a displacement in series with the hinge; it must map the
+  unloaded start to 0. A rate-independent one is a function of the force (all its work
+  is stored); a time-dependent one may say what it stores (``PostResult``) and the rest
+  is booked as dissipated (``post_increments``).
 
-``run_cycle_with_effects`` applies the enabled effects to the configurations (condensed
-once per mesh and clearance, reusable for every amplitude and effect), runs
-``fe.general.cycle.run_cycle`` and post-processes its increments, so the returned loop and its
-metrics (η, U_max, the energy balance) are consistent.
+The general hinge's cycle with effects is ``fe.effects.cycle.run_cycle_with_effects``.
 
 Fingerprints: each effect's docstring gives a table measured on the coarse test mesh
 (``MeshSettings.coarse()``: size 4, contact 2 mm; μ = 0.2),
@@ -35,20 +41,20 @@ they raise a ``ParameterError`` naming their parameter when applied with Δr > 0
 from __future__ import annotations
 
 import dataclasses
+import importlib.metadata
 import math
-import time
+import sys
 import types
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
-from threadpoolctl import threadpool_limits
 
 from cad.errors import ParameterError
-from fe.cycle.protocol import CycleSettings
+from fe.cycle.protocol import DEFAULT_FORCE_RATE
 from fe.cycle.result import CycleResult, Increment
-from fe.effects.base import Effect, EffectContext, FloatArray
+from fe.effects.base import Effect, EffectContext, FloatArray, History
+from fe.effects.history import protocol_time
 from fe.effects.interfaces import InterfaceFriction
 from fe.effects.models import (
     FaceFriction,
@@ -57,37 +63,193 @@ from fe.effects.models import (
     RoughnessSoftening,
     TangentialCompliance,
 )
-from fe.general.cycle import configurations, run_cycle
-from fe.general.faces import faces_only, unloaded_state
-from fe.general.system import GRIP, HingeSystem
+from fe.effects.plugins import (
+    ENTRY_POINT_GROUP,
+    EffectSource,
+    call_apply,
+    call_post,
+    check_effect,
+    load_entry_point,
+    load_source,
+    named,
+    origin_hash,
+)
 from fe.structure.condensed import Condensed
 
 __all__ = [
+    "BUILTIN",
     "REGISTRY",
-    "EffectCycleResult",
+    "Entry",
+    "PostChain",
     "apply_effects",
+    "effect_entry",
+    "effect_names",
     "effect_ranges",
+    "post_chain",
+    "post_increments",
     "post_process",
-    "prestressed_zero",
-    "run_cycle_with_effects",
+    "register_effect",
+    "register_source",
+    "unregister_effect",
     "validate_effects",
 ]
 
 
-REGISTRY: Mapping[str, Effect] = types.MappingProxyType(
-    {
-        e.name: e
-        for e in (
-            FrameCompliance(),
-            RoughnessSoftening(),
-            TangentialCompliance(),
-            Interference(),
-            FaceFriction(),  # last: the effects before it act on the pin–hole points only
-            InterfaceFriction(),  # the bearing hinge's: swaps its structure (fe.kinds.bearing)
-        )
-    }
+BUILTIN: tuple[Effect, ...] = (
+    FrameCompliance(),
+    RoughnessSoftening(),
+    TangentialCompliance(),
+    Interference(),
+    FaceFriction(),  # last of the general hinge's: the effects before it act on the pin–hole points
+    InterfaceFriction(),  # the bearing hinge's: swaps its structure (fe.kinds.bearing)
 )
-"""Effect name → effect, in the order they are applied."""
+"""The effects this package ships, in the order they are applied."""
+
+
+@dataclass(frozen=True)
+class Entry:
+    """A registered effect and where it came from.
+
+    Attributes:
+        effect: The effect (its ``name`` is the registry name).
+        origin: ``hingelab`` for a built-in; ``path:Class`` for a file; the entry point.
+        source_hash: SHA-256 of the source that defines it ("" for a built-in, which the
+            package version keys): part of every result key that uses it.
+        source: The file it was loaded from (None for a built-in or an entry point).
+    """
+
+    effect: Effect
+    origin: str
+    source_hash: str = ""
+    source: EffectSource | None = None
+
+    @property
+    def builtin(self) -> bool:
+        """True for an effect this package ships."""
+        return self.origin == "hingelab"
+
+
+_BUILTIN: dict[str, Entry] = {e.name: Entry(e, "hingelab") for e in BUILTIN}
+_REGISTERED: dict[str, Entry] = {}  # files and objects, in registration order
+_ENTRY_POINTS: dict[str, Entry] = {}  # loaded entry points
+
+
+_POINTS_CACHE: dict[tuple[str, ...], dict[str, str]] = {}
+
+
+def _entry_point_values() -> dict[str, str]:
+    """Effect name → ``module:attr`` of the installed entry points (not loaded).
+
+    Read once per ``sys.path`` (the registry is asked on every validation).
+    """
+    key = tuple(sys.path)
+    if key not in _POINTS_CACHE:
+        _POINTS_CACHE.clear()
+        _POINTS_CACHE[key] = {
+            ep.name: ep.value for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
+        }
+    return _POINTS_CACHE[key]
+
+
+def effect_names() -> tuple[str, ...]:
+    """Every effect that is known, in application order: built-ins, entry points, registered."""
+    names = [*_BUILTIN, *_entry_point_values(), *_REGISTERED]
+    return tuple(dict.fromkeys(names))
+
+
+def effect_entry(name: str) -> Entry:
+    """The registered effect ``name`` and its origin (an entry point is loaded on first use).
+
+    Raises:
+        ParameterError: For an unknown name (the known ones listed), or an entry point
+            that does not load or is not an effect (naming it).
+    """
+    if name in _BUILTIN:
+        return _BUILTIN[name]
+    if name in _REGISTERED:
+        return _REGISTERED[name]
+    if name not in _ENTRY_POINTS:
+        points = _entry_point_values()
+        if name not in points:
+            raise ParameterError(
+                f"unknown effect {name!r}; known effects: {', '.join(effect_names())}"
+            )
+        where = f"entry point {name} = {points[name]!r} ({ENTRY_POINT_GROUP})"
+        effect = named(load_entry_point(name, points[name]), name, where)
+        _ENTRY_POINTS[name] = Entry(effect, where, origin_hash(effect))
+    return _ENTRY_POINTS[name]
+
+
+def register_effect(effect: Effect, origin: str = "registered object") -> Effect:
+    """Register an effect object under its name (a script or a test); return it.
+
+    Raises:
+        ParameterError: For a built-in's name, or an object that is not an effect.
+    """
+    effect = check_effect(effect, origin)
+    if effect.name in _BUILTIN:
+        raise ParameterError(
+            f"{origin}: {effect.name!r} is a built-in effect: name yours otherwise"
+        )
+    _REGISTERED[effect.name] = Entry(effect, origin, origin_hash(effect))
+    return effect
+
+
+def register_source(name: str, source: EffectSource) -> Effect:
+    """Register the effect of a user's file under ``name`` (the MODEL.toml section).
+
+    Idempotent for the same file content; a spec read before the file was edited
+    registers its own version again (kept in memory by hash), so a result is always
+    computed with the code its key names.
+
+    Raises:
+        ParameterError: For a built-in's name or an entry point's, a missing or changed
+            file, or a file whose class is not an effect (``fe.effects.plugins``).
+    """
+    have = _REGISTERED.get(name)
+    if have is not None and have.source == source:
+        return have.effect
+    if name in _BUILTIN or name in _entry_point_values():
+        raise ParameterError(
+            f"{source.origin}: {name!r} is already the name of a "
+            f"{'built-in' if name in _BUILTIN else 'installed'} effect: name the section otherwise"
+        )
+    effect = named(load_source(source), name, source.origin)
+    _REGISTERED[name] = Entry(effect, source.origin, source.sha256, source)
+    return effect
+
+
+def unregister_effect(name: str) -> None:
+    """Forget a registered effect (a loaded entry point is loaded again on next use)."""
+    _REGISTERED.pop(name, None)
+    _ENTRY_POINTS.pop(name, None)
+
+
+class _Registry(Mapping[str, Effect]):
+    """Effect name → effect, read-only and live: what is registered now, in application order."""
+
+    def __getitem__(self, name: str) -> Effect:
+        if name not in effect_names():
+            raise KeyError(name)
+        return effect_entry(name).effect
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(effect_names())
+
+    def __len__(self) -> int:
+        return len(effect_names())
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name in effect_names()
+
+    def __repr__(self) -> str:
+        return f"REGISTRY({', '.join(effect_names())})"
+
+
+REGISTRY: Mapping[str, Effect] = _Registry()
+"""Effect name → effect, in the order they are applied: the built-ins, then entry points
+(``hingelab.effects``), then effects registered from files (MODEL.toml ``from``) or
+objects. A live read-only view: it always shows what is registered now."""
 
 
 def effect_ranges() -> dict[str, dict[str, tuple[float, float]]]:
@@ -110,13 +272,15 @@ def validate_effects(
         ParameterError: Unknown effect or parameter (the known ones listed), or a value
             outside its range (naming effect, parameter, value and range).
     """
-    unknown = [n for n in effects if n not in REGISTRY]
+    names = effect_names()
+    unknown = [n for n in effects if n not in names]
     if unknown:
-        raise ParameterError(f"unknown effect(s) {unknown}; known effects: {', '.join(REGISTRY)}")
+        raise ParameterError(f"unknown effect(s) {unknown}; known effects: {', '.join(names)}")
     out: dict[str, Mapping[str, float]] = {}
-    for name, effect in REGISTRY.items():
+    for name in names:
         if name not in effects:
             continue
+        effect = effect_entry(name).effect
         given = effects[name]
         specs = {p.name: p for p in effect.params}
         bad = [k for k in given if k not in specs]
@@ -141,129 +305,127 @@ def apply_effects(
     effects: Mapping[str, Mapping[str, float]],
     ctx: EffectContext,
 ) -> dict[int, Condensed]:
-    """Apply every enabled effect's ``apply`` hook, in registry order (inputs unchanged)."""
+    """Apply every enabled effect's ``apply`` hook, in registry order (inputs unchanged).
+
+    A plug-in's hook is guarded (``fe.effects.plugins.call_apply``).
+    """
     values = validate_effects(effects)
     out = dict(configs)
     for name, vals in values.items():
-        out = REGISTRY[name].apply(out, vals, ctx)
+        entry = effect_entry(name)
+        if entry.builtin:
+            out = entry.effect.apply(out, vals, ctx)
+        else:
+            out = call_apply(entry.effect, out, vals, ctx, entry.origin)
     return out
 
 
-def post_process(
-    force_n: FloatArray, disp_mm: FloatArray, effects: Mapping[str, Mapping[str, float]]
-) -> FloatArray:
-    """Apply every enabled effect's ``post`` hook, in registry order; shape (n,) [mm]."""
-    values = validate_effects(effects)
-    d = np.array(disp_mm, dtype=np.float64, copy=True)
-    for name, vals in values.items():
-        d = REGISTRY[name].post(np.asarray(force_n, dtype=np.float64), d, vals)
-    return d
-
-
 @dataclass(frozen=True)
-class EffectCycleResult:
-    """A cycle computed with effects.
+class PostChain:
+    """The loop after every ``post`` hook.
 
     Attributes:
-        result: The post-processed cycle: increments' δ include the ``post`` effects and
-            their elastic energy the series spring's, so its ``loop_arrays`` and
-            ``metrics`` (η, U_max, energy balance) describe the loop the grips see; its
-            ``configs`` are the effect-modified configurations.
-        effects: The validated effects.
-        base_configs: The configurations without effects: pass these (not
-            ``result.configs``) to the next ``run_cycle_with_effects`` call.
+        disp_mm: Displacement at the grips, shape (n,) [mm].
+        series_work_nmm: Work ``Σ ½(F_i + F_{i−1}) Δh`` done on the effects' elements
+            from the start, shape (n,) [N·mm] (h = the displacement they add).
+        dissipated_nmm: The part of it the elements dissipated, shape (n,) [N·mm] (0
+            for a rate-independent element, which stores all of it).
     """
 
-    result: CycleResult
-    effects: Mapping[str, Mapping[str, float]]
-    base_configs: dict[int, Condensed]
-
-    def loop_arrays(
-        self, *, with_free_play: bool = False
-    ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int64]]:
-        """Return (force (n+1,) [N], displacement (n+1,) [mm], stage (n+1,)), see ``CycleResult``."""
-        return self.result.loop_arrays(with_free_play=with_free_play)
-
-    def metrics(self) -> dict[str, float]:
-        """Return η, W_cycle, U_max, … of the post-processed loop (``CycleResult.metrics``)."""
-        return self.result.metrics()
+    disp_mm: FloatArray
+    series_work_nmm: FloatArray
+    dissipated_nmm: FloatArray
 
 
-def prestressed_zero(cond: Condensed, settings: CycleSettings, pin_centred: bool = False) -> float:
-    """Return the grip displacement of the unloaded, prestressed hinge δ₀ [mm].
+def post_chain(
+    force_n: FloatArray,
+    disp_mm: FloatArray,
+    effects: Mapping[str, Mapping[str, float]],
+    time_s: FloatArray | None = None,
+    force_rate_n_per_s: float = DEFAULT_FORCE_RATE,
+) -> PostChain:
+    """Apply every enabled effect's ``post`` hook in registry order, keeping the energy books.
 
-    With an initial overlap (``w0_n < 0`` somewhere) the hinge is prestressed before any
-    load and the clevis settles at δ₀ ≠ 0 under F = 0. A test machine zeroes its
-    displacement there, so the loop is referred to it. Computed as one frictional
-    increment from the unloaded open state to F = 0 (``fe.general.faces.unloaded_state``),
-    for any points with an overlap: pin–hole (interference) or clamped faces. With
-    clearance (``pin_centred``) the unloaded hinge has the pin centred, touching nothing:
-    the faces alone, δ₀ relative to the centred clevis (``fe.general.freeplay``).
+    Args:
+        force_n: Force, shape (n,) [N], from the unloaded start.
+        disp_mm: Displacement, shape (n,) [mm].
+        effects: Effect name → parameter → value.
+        time_s: Time of each sample, shape (n,) [s]; None: the force ramped at
+            ``force_rate_n_per_s`` (``fe.effects.history.protocol_time``).
+        force_rate_n_per_s: The protocol's force rate [N/s] (when ``time_s`` is None).
+
+    Raises:
+        ParameterError: An unknown effect or a value out of range.
+        DataError: A plug-in's hook that fails (``fe.effects.plugins.call_post``).
     """
-    contact = EffectContext.contact_of(settings)
-    if pin_centred:
-        return float(unloaded_state(faces_only(cond), contact).alpha[0])
-    return float(unloaded_state(cond, contact).alpha[GRIP])
+    values = validate_effects(effects)
+    F = np.asarray(force_n, dtype=np.float64)
+    t = protocol_time(F, force_rate_n_per_s) if time_s is None else np.asarray(time_s, float)
+    d = np.array(disp_mm, dtype=np.float64, copy=True)
+    work = np.zeros_like(d)
+    lost = np.zeros_like(d)
+    for name, vals in values.items():
+        entry = effect_entry(name)
+        d_new, stored = call_post(entry.effect, History(F, d, t), vals, entry.origin)
+        step = np.concatenate([[0.0], np.cumsum(0.5 * (F[1:] + F[:-1]) * np.diff(d_new - d))])
+        work += step
+        if stored is not None:
+            lost += step - (stored - stored[0])
+        d = d_new
+    return PostChain(d, work, lost)
+
+
+def post_process(
+    force_n: FloatArray,
+    disp_mm: FloatArray,
+    effects: Mapping[str, Mapping[str, float]],
+    time_s: FloatArray | None = None,
+    force_rate_n_per_s: float = DEFAULT_FORCE_RATE,
+) -> FloatArray:
+    """Apply every enabled effect's ``post`` hook, in registry order; shape (n,) [mm].
+
+    ``time_s`` and ``force_rate_n_per_s`` as in ``post_chain``.
+    """
+    return post_chain(force_n, disp_mm, effects, time_s, force_rate_n_per_s).disp_mm
 
 
 def post_increments(
-    result: CycleResult, effects: Mapping[str, Mapping[str, float]], zero_mm: float = 0.0
+    result: CycleResult,
+    effects: Mapping[str, Mapping[str, float]],
+    zero_mm: float = 0.0,
+    time_s: FloatArray | None = None,
 ) -> CycleResult:
-    """Return ``result`` with post-processed δ; the series energy ``Σ ½(F_i + F_{i−1}) Δh`` is added.
+    """Return ``result`` with post-processed δ and the effects' energies booked.
 
-    ``zero_mm`` is subtracted from every increment first (the prestressed zero δ₀).
+    The work done on the effects' elements (``post_chain``) is added to the elastic
+    energy as far as they store it, and the rest to ``Increment.effect_work`` (what a
+    viscous element dissipates), so ``W_cycle = ΔE + friction work + effect work`` holds
+    exactly as before: for a rate-independent effect (all stored) nothing changes.
+
+    Args:
+        result: The cycle without post effects.
+        effects: Effect name → parameter → value.
+        zero_mm: Subtracted from every increment first (the prestressed zero δ₀).
+        time_s: Time of the start and of each increment, shape (n + 1,) [s]; None: the
+            protocol's, at ``result.settings.force_rate_n_per_s``.
+
+    Raises:
+        ParameterError: A post effect that does not map F = 0 to δ = 0 at the start.
     """
     F = np.array([0.0] + [i.force_n for i in result.increments])
     d = np.array([0.0] + [i.disp_mm - zero_mm for i in result.increments])
-    d_new = post_process(F, d, effects)
-    if d_new[0] != 0.0:
-        raise ParameterError(f"a post effect must map F = 0 to δ = 0, got {d_new[0]:g} mm")
-    h = d_new - d
-    series = np.concatenate([[0.0], np.cumsum(0.5 * (F[1:] + F[:-1]) * np.diff(h))])
+    chain = post_chain(F, d, effects, time_s, result.settings.force_rate_n_per_s)
+    if chain.disp_mm[0] != 0.0:
+        raise ParameterError(f"a post effect must map F = 0 to δ = 0, got {chain.disp_mm[0]:g} mm")
+    stored = chain.series_work_nmm - chain.dissipated_nmm
+    lost = np.diff(chain.dissipated_nmm)
     incs: list[Increment] = [
         dataclasses.replace(
             inc,
-            disp_mm=float(d_new[k + 1]),
-            elastic_energy=inc.elastic_energy + float(series[k + 1]),
+            disp_mm=float(chain.disp_mm[k + 1]),
+            elastic_energy=inc.elastic_energy + float(stored[k + 1]),
+            effect_work=inc.effect_work + float(lost[k]),
         )
         for k, inc in enumerate(result.increments)
     ]
     return dataclasses.replace(result, increments=tuple(incs))
-
-
-def run_cycle_with_effects(
-    system: HingeSystem,
-    clearance_mm: float,
-    settings: CycleSettings,
-    effects: Mapping[str, Mapping[str, float]],
-    configs: Mapping[int, Condensed] | None = None,
-) -> EffectCycleResult:
-    """Run the load cycle with effects switched on.
-
-    Args:
-        system: The factorised hinge.
-        clearance_mm: Radial clearance Δr [mm].
-        settings: Load protocol and solver options.
-        effects: Effect name → parameter → value (absent parameters take defaults).
-        configs: Configurations *without* effects to reuse (``configurations``); condensed
-            here if None.
-
-    Returns:
-        The post-processed cycle and the base configurations for reuse.
-
-    Raises:
-        ParameterError: An unknown effect or parameter, or a value out of range.
-        ConvergenceError: As ``fe.general.cycle.run_cycle`` (its ``partial`` is not post-processed).
-    """
-    values = validate_effects(effects)
-    base = dict(configs) if configs is not None else configurations(system, clearance_mm)
-    t0 = time.perf_counter()
-    with threadpool_limits(limits=settings.blas_threads, user_api="blas"):  # as run_cycle's solves
-        modified = apply_effects(base, values, EffectContext(system, settings))
-        overlap = any(np.any(np.asarray(c.w0)[:, 0] < 0.0) for c in modified.values())
-        zero = prestressed_zero(modified[1], settings, clearance_mm > 0) if overlap else 0.0
-    t_apply = time.perf_counter() - t0
-    raw = run_cycle(system, clearance_mm, settings, configs=modified)
-    result = post_increments(raw, values, zero) if values else raw
-    object.__setattr__(result, "timings_s", {**raw.timings_s, "effects": t_apply})
-    return EffectCycleResult(result, values, base)

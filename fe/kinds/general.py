@@ -88,7 +88,7 @@ class GeneralHinge:
         """
         clearance = built.structure["clearance_mm"]
         if effects:
-            from fe.effects.registry import run_cycle_with_effects
+            from fe.effects.cycle import run_cycle_with_effects
 
             with_effects = run_cycle_with_effects(
                 built.system,

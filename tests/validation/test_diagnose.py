@@ -187,7 +187,7 @@ def test_eta_judged_without_free_play_is_the_cycles_reported_eta(spec, tmp_path)
     # (δ_max − 2Δr of the machine path). That must be the η `hingelab cycle` reports
     # (its loop without the free play); a different δ or a 4Δr slip would bias every
     # η-only diagnosis with clearance.
-    from fe.effects.registry import run_cycle_with_effects
+    from fe.effects.cycle import run_cycle_with_effects
     from model.spec import DesignPoint
     from validation.candidate_fit import eta_without_free_play, measured_features
     from validation.evaluate import ModelEvaluator

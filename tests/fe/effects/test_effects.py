@@ -17,12 +17,12 @@ from cad.errors import ParameterError
 from cad.general import GeneralHingeParams, make_general_hinge
 from fe.cycle.protocol import CycleSettings
 from fe.effects.base import EffectContext
+from fe.effects.cycle import run_cycle_with_effects
 from fe.effects.registry import (
     REGISTRY,
     apply_effects,
     effect_ranges,
     post_process,
-    run_cycle_with_effects,
     validate_effects,
 )
 from fe.general.cycle import configurations, run_cycle

@@ -13,7 +13,8 @@ import pytest
 
 from cad.general import GeneralHingeParams, make_general_hinge
 from fe.cycle.protocol import CycleSettings
-from fe.effects.registry import REGISTRY, run_cycle_with_effects
+from fe.effects.cycle import run_cycle_with_effects
+from fe.effects.registry import REGISTRY
 from fe.general.crossing import face_mask
 from fe.general.cycle import configurations, run_cycle
 from fe.general.faces import face_normal_forces
