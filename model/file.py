@@ -14,6 +14,8 @@ dataclass default)::
                        amplitude; ``compare`` runs each case at its own)
     [effects.NAME]     parameters of a switched-on physical effect, checked against a
                        registry of known effects and their parameter ranges
+    [laws.PARAM]       a hinge parameter as a straight line in the cases' test conditions:
+                       read and checked by ``validation.joint_laws`` (left alone here)
 
 Unknown sections and keys are refused by name with the allowed ones listed; a wrong
 type is refused naming the key; out-of-range values are refused by the dataclasses'
@@ -80,7 +82,7 @@ def _ranges(registry: EffectRegistry) -> dict[str, Mapping[str, tuple[float, flo
 NO_EFFECTS: EffectRegistry = types.MappingProxyType({})
 """A registry that refuses every [effects.*] section (for files that must have none)."""
 
-SECTIONS = ("hinge", "materials", "mesh", "friction", "cycle", "effects")
+SECTIONS = ("hinge", "materials", "mesh", "friction", "cycle", "effects", "laws")
 _MATERIAL_SUFFIX = "_material"
 
 
