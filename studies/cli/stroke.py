@@ -69,9 +69,7 @@ def run_diagnose(args: argparse.Namespace, data: Any) -> int:
     spec, laws, settings = _inputs(args)
     params_type = spec.hinge_kind.params_type
     candidates = (
-        parse_terms(args.candidates, params_type)
-        if args.candidates
-        else default_candidates(data)
+        parse_terms(args.candidates, params_type) if args.candidates else default_candidates(data)
     )
     result = stroke_diagnosis(spec, laws, data, candidates, settings)
     if args.json:
@@ -109,9 +107,7 @@ def run_calibrate(args: argparse.Namespace, data: Any) -> int:
     spec, laws, settings = _inputs(args)
     terms = parse_terms(args.fit or "", spec.hinge_kind.params_type)
     check_writable_dir(args.out, "--out")
-    laws, rows, ho = stroke_ledger(
-        spec, laws, data, terms, settings, hold_out=args.leave_one_out
-    )
+    laws, rows, ho = stroke_ledger(spec, laws, data, terms, settings, hold_out=args.leave_one_out)
     model_out = write_model_with_laws(spec, laws, args.out / "MODEL.toml")
     every = append_ledger(args.out, rows)
     png = plot_ledger(every, args.out / "ledger.png")
@@ -129,7 +125,11 @@ def run_calibrate(args: argparse.Namespace, data: Any) -> int:
         print(json.dumps(out, default=float))
         return 0
     for r in every:
-        held = f"{r['heldout_error']:8.2f} σ" if r["heldout_error"] == r["heldout_error"] else "       —"
+        held = (
+            f"{r['heldout_error']:8.2f} σ"
+            if r["heldout_error"] == r["heldout_error"]
+            else "       —"
+        )
         print(f"{r['step']:44} error {r['error']:8.2f} σ  held-out {held}  BIC {r['bic']:9.1f}")
     for k, v in law_lines(laws):
         print(f"  {k} = {v:.6g}")
