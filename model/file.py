@@ -18,6 +18,8 @@ dataclass default)::
                        relative to this one, and the Effect class in it). With ``from``
                        and no parameters the effect is only declared: off, but known to
                        ``diagnose``, ``calibrate`` and ``synth``.
+    [laws.PARAM]       a hinge parameter as a straight line in the cases' test conditions:
+                       read and checked by ``validation.joint_laws`` (left alone here)
 
 Unknown sections and keys are refused by name with the allowed ones listed; a wrong
 type is refused naming the key; out-of-range values are refused by the dataclasses'
@@ -88,7 +90,7 @@ def _ranges(registry: EffectRegistry, name: str) -> Mapping[str, tuple[float, fl
 NO_EFFECTS: EffectRegistry = types.MappingProxyType({})
 """A registry that refuses every [effects.*] section (for files that must have none)."""
 
-SECTIONS = ("hinge", "materials", "mesh", "friction", "cycle", "effects")
+SECTIONS = ("hinge", "materials", "mesh", "friction", "cycle", "effects", "laws")
 _MATERIAL_SUFFIX = "_material"
 
 

@@ -63,6 +63,11 @@ class JointParams:
         slip_force_n: The bank's fixed friction capacity F_s = Σ kᵢφᵢ [N].
         slip_ratio: λ_max, the largest load-proportional slip ratio, in [0, 1).
         free_play_mm: The total width 2g of the dead zone (backlash) [mm].
+        slip_asymmetry: a in (−1, 1): the fixed slip force is F_s(1 + a) while the
+            element is driven forwards (u increasing) and F_s(1 − a) backwards, as in a
+            self-energising band brake (capstan e^{μθ} in one direction only). The
+            branches' φᵢ scale the same way, so each slider sticks while
+            −φᵢ(1 − a) < x − sᵢ < φᵢ(1 + a); a = 0 is the symmetric bank.
         damping_n_s_per_mm: The dashpot c across the element [N·s/mm].
         n_branches: N, the number of Jenkins branches.
     """
@@ -76,6 +81,7 @@ class JointParams:
     free_play_mm: float = 0.0
     damping_n_s_per_mm: float = 0.0
     n_branches: int = 20
+    slip_asymmetry: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("k_tension_n_per_mm", "k_compression_n_per_mm"):
@@ -87,6 +93,7 @@ class JointParams:
         check_range("free_play_mm", self.free_play_mm, 0.0, 1e3)
         check_range("damping_n_s_per_mm", self.damping_n_s_per_mm, 0.0, 1e9)
         check_range("n_branches", self.n_branches, 1, 10_000)
+        check_range("slip_asymmetry", self.slip_asymmetry, -1.0, 1.0, lo_open=True, hi_open=True)
         if self.k_elastic_n_per_mm + self.k_slip_n_per_mm <= 0.0:
             raise ParameterError("k_elastic_n_per_mm + k_slip_n_per_mm must be > 0, got 0")
         if self.slip_force_n > 0.0 and self.k_slip_n_per_mm == 0.0:
@@ -116,11 +123,21 @@ class JointParams:
         lam = self.slip_ratio * mid
         return Branches(k, phi_max * mid, lam, 1.0 / (1.0 - lam), 1.0 / (1.0 + lam))
 
+    def branches_towards(self, direction: float) -> Branches:
+        """The branches as a segment moving in ``direction`` (+1 forwards, −1 backwards) sees them.
+
+        Only φᵢ depends on the direction: φᵢ(1 + a·direction) (``slip_asymmetry``).
+        """
+        br = self.branches
+        if self.slip_asymmetry == 0.0:
+            return br
+        return br._replace(phi=br.phi * (1.0 + self.slip_asymmetry * direction))
+
     def capacity_n(self) -> float:
-        """The largest force the element can carry (inf with an elastic path or λ > 0)."""
+        """The largest force the element can carry either way (inf with an elastic path or λ > 0)."""
         if self.k_elastic_n_per_mm > 0.0 or self.slip_ratio > 0.0:
             return math.inf
-        return self.slip_force_n
+        return self.slip_force_n * (1.0 - abs(self.slip_asymmetry))
 
 
 class Branches(NamedTuple):

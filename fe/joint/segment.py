@@ -11,7 +11,8 @@ target of the segment is an exact linear interpolation in that table (``np.inter
 the segment costs a few array operations whatever its number of samples.
 
 A backward segment is the forward one in the mirrored frame (x, s, p, u, F → −x, −s, −p,
-−u, −F, with k₊ and k₋ swapped), since rᵢ depends on |x| only.
+−u, −F, with k₊ and k₋ swapped), since rᵢ depends on |x| only; with a slip asymmetry a
+the frame's φᵢ is φᵢ(1 + a·d) (``JointParams.branches_towards``).
 
 The friction work of a branch sliding from x_a to x_b is exact: its slider moves by
 ds = (1 − λ sgn x) dx at the force kᵢ rᵢ(x), so it is kᵢ [G(x_b) − G(x_a)] with
@@ -207,8 +208,8 @@ def advance_displacement(
     Returns:
         The element at each target.
     """
-    br = params.branches
     d = 1.0 if disp[-1] >= state.disp_mm else -1.0
+    br = params.branches_towards(d)
     fr = _frame(params, br, state, d, float(d * disp.max() if d > 0 else -disp.min()), -np.inf)
     return _evaluate(params, br, fr, d * disp, state, rate)
 
@@ -223,8 +224,8 @@ def advance_force(
     Raises:
         ParameterError: If a force exceeds the element's capacity.
     """
-    br = params.branches
     d = 1.0 if force[-1] >= state.force_n else -1.0
+    br = params.branches_towards(d)
     reach = float(d * force.max() if d > 0 else -force.min())
     fr = _frame(params, br, state, d, -np.inf, reach)
     u0 = d * state.disp_mm
@@ -241,8 +242,8 @@ def breakpoints(params: JointParams, state: JointState, disp_end: float) -> Floa
 
     Kinks: a branch's onset, x = 0, the free play's ends; shape (m,) [mm].
     """
-    br = params.branches
     d = 1.0 if disp_end >= state.disp_mm else -1.0
+    br = params.branches_towards(d)
     fr = _frame(params, br, state, d, d * disp_end, -np.inf)
     u = fr.u[(fr.u > d * state.disp_mm) & (fr.u < d * disp_end)]
     return np.asarray(d * u)

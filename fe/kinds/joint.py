@@ -17,6 +17,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import numpy.typing as npt
+
 from cad.errors import ParameterError
 from fe.cycle.protocol import CycleSettings, stage_targets
 from fe.cycle.result import CycleResult, Increment
@@ -24,6 +27,8 @@ from fe.joint.element import JointParams, initial_state
 from fe.joint.history import displacement_history, force_history
 from fe.kinds import Built, DesignVariable, Effects, Progress
 from mesh.settings import MeshSettings
+
+FloatArray = npt.NDArray[np.float64]
 
 SLIP_FORCE = DesignVariable(
     name="slip_force_n",
@@ -85,6 +90,48 @@ def run_joint_cycle(params: JointParams, settings: CycleSettings) -> CycleResult
     return CycleResult(settings, 0.0, tuple(incs), params.free_play_mm, (), {}, {})
 
 
+def run_joint_displacement(
+    params: JointParams,
+    time_s: npt.ArrayLike,
+    disp_mm: npt.ArrayLike,
+    passes: int = 2,
+) -> tuple[FloatArray, FloatArray]:
+    """The element driven through one measured cycle, repeated until it is steady.
+
+    The element starts unloaded at u = 0, ramps to the cycle's first displacement over
+    ``RAMP_SAMPLES`` samples, then runs the cycle ``passes`` times; the last pass is
+    returned (a rate-independent element with a free play repeats itself from the
+    second pass on). With a dashpot the cycle's own times give the rate.
+
+    Args:
+        params: The element.
+        time_s: The cycle's times, shape (n,) [s], strictly increasing.
+        disp_mm: Its displacements, shape (n,) [mm] (one cycle +δ → −δ → +δ).
+        passes: Times the cycle is run (≥ 1).
+
+    Returns:
+        (F [N], u [mm]) of the last pass, each shape (n,).
+    """
+    t = np.asarray(time_s, dtype=np.float64).ravel()
+    u = np.asarray(disp_mm, dtype=np.float64).ravel()
+    if t.shape != u.shape or t.size < 2:
+        raise ParameterError(
+            f"time_s and disp_mm must be two equal arrays of ≥ 2 samples, got {t.size}, {u.size}"
+        )
+    dt = float(np.median(np.diff(t)))
+    ramp_u = u[0] * np.linspace(0.0, 1.0, RAMP_SAMPLES + 1)[1:]
+    ramp_t = dt * np.arange(1, RAMP_SAMPLES + 1)
+    span = t[-1] - t[0] + dt
+    parts_t = [ramp_t] + [ramp_t[-1] + dt + k * span + (t - t[0]) for k in range(max(passes, 1))]
+    parts_u = [ramp_u] + [u] * max(passes, 1)
+    hist = displacement_history(params, np.concatenate(parts_u), np.concatenate(parts_t))
+    return hist.force_n[-u.size :], hist.disp_mm[-u.size :]
+
+
+RAMP_SAMPLES = 16
+"""Samples of the ramp from rest to a measured cycle's first displacement."""
+
+
 class JointKind:
     """The hinge kind ``joint``: the reduced-order element of ``fe.joint``."""
 
@@ -135,6 +182,16 @@ class JointKind:
         if progress is not None:
             progress(len(result.increments), len(result.increments))
         return result
+
+    def displacement_loop(
+        self, params: Any, time_s: npt.ArrayLike, disp_mm: npt.ArrayLike
+    ) -> tuple[FloatArray, FloatArray]:
+        """The element driven by a measured cycle's displacement (``run_joint_displacement``).
+
+        A kind that has this method can be compared with displacement-controlled records
+        (``validation.stroke_fit``); the meshed kinds do not have it.
+        """
+        return run_joint_displacement(params, time_s, disp_mm)
 
     def summary(self, built: Built, params: Any, result: CycleResult) -> dict[str, Any]:
         """The element's parameters."""

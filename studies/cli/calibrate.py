@@ -56,6 +56,20 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="stated relative σ of η-only cases, for the fit and the comparison (default 0.05)",
     )
     p.add_argument("--no-compare", action="store_true", help="do not re-run the comparison")
+    p.add_argument(
+        "--fit",
+        default=None,
+        metavar="TERMS",
+        help="displacement-controlled data: element parameters to fit, one ledger step each, "
+        "e.g. slip_force_n~band_tension_N^2,free_play_mm (param: a constant; ~cond: a law in "
+        "the condition cond_<cond>; ^2: a parabola)",
+    )
+    p.add_argument(
+        "--leave-one-out",
+        action="store_true",
+        help="displacement-controlled data: predict each record from a fit without it "
+        "(held-out error per step, leave_one_out.json)",
+    )
     p.set_defaults(func=run)
 
 
@@ -67,8 +81,19 @@ def run(args: argparse.Namespace) -> int:
     from validation.features import FeatureSettings
     from validation.measurements import read_measurement_set
 
-    spec = read_model(args.model)
     data = read_measurement_set(args.data)
+    from validation.stroke_fit import is_displacement_set
+
+    if is_displacement_set(data):
+        from studies.cli.stroke import run_calibrate
+
+        return run_calibrate(args, data)
+    if args.fit or args.leave_one_out:
+        raise ParameterError(
+            "calibrate: --fit/--leave-one-out need displacement-controlled data "
+            f"(control = displacement in {args.data}/cases.csv)"
+        )
+    spec = read_model(args.model)
     names = [n.strip() for n in args.effects.split(",") if n.strip()]
     if not names and not args.mu:
         raise ParameterError("calibrate: give --effects NAME[,NAME] and/or --mu")

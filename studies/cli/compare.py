@@ -75,8 +75,14 @@ def run(args: argparse.Namespace) -> int:
     from validation.measurements import read_measurement_set
     from validation.workflow import compare_and_write
 
-    spec = read_model(args.model)
     data = read_measurement_set(args.data)
+    from validation.stroke_fit import is_displacement_set
+
+    if is_displacement_set(data):  # a rig drove ±δ: the model follows its displacement
+        from studies.cli.stroke import run_compare
+
+        return run_compare(args, data)
+    spec = read_model(args.model)
     from validation.features import FeatureSettings
 
     settings = CompareSettings(

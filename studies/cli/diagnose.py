@@ -55,8 +55,14 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"--alpha must be in (0, 0.5], got {args.alpha}")
     if args.candidates is not None and not args.candidates.strip(", "):
         raise ParameterError(f"--candidates must name at least one effect, got {args.candidates!r}")
-    spec = read_model(args.model)
     data = read_measurement_set(args.data)
+    from validation.stroke_fit import is_displacement_set
+
+    if is_displacement_set(data):  # candidates are the element's terms, not effects
+        from studies.cli.stroke import run_diagnose
+
+        return run_diagnose(args, data)
+    spec = read_model(args.model)
     settings = DiagnoseSettings(
         features=FeatureSettings(rel_floor=args.model_error),
         alpha=args.alpha,
