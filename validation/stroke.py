@@ -32,7 +32,8 @@ import numpy as np
 import numpy.typing as npt
 
 from cad.errors import DataError, check_range
-from validation.loops import area_noise_sigma, loop_area, noise_level
+from validation.loop_metrics import loop_area
+from validation.loops import area_noise_sigma, noise_level
 from validation.rig_cycles import displacement_stages
 
 FloatArray = npt.NDArray[np.float64]

@@ -62,7 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         metavar="TERMS",
         help="displacement-controlled data: element parameters to fit, one ledger step each, "
         "e.g. slip_force_n~band_tension_N^2,free_play_mm (param: a constant; ~cond: a law in "
-        "the condition cond_<cond>; ^2: a parabola)",
+        "the condition cond_<cond>; ^2: a parabola; default: none, required for such data)",
     )
     p.add_argument(
         "--leave-one-out",
