@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import json
 from pathlib import Path
@@ -130,3 +131,31 @@ def test_the_fmu_reproduces_the_element_loop(tmp_path: Path) -> None:
     scale = np.max(np.abs(h.force_n))
     assert scale > 100.0
     assert np.max(np.abs(res["F"] - h.force_n)) <= 1e-6 * scale
+
+
+@pytest.mark.slow  # a coarse FE sweep (8 cycles, ~40 s) and two fits
+def test_reduce_meets_the_targets_on_a_real_fe_sweep(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """Issue 34's targets on FE loops, not on loops of the element itself: at Δr = 0 over four
+    amplitudes η within 5 % and δ(±Fg) within 2 % of the FE; at Δr = 0.1 mm the element's free
+    play is the geometry's, 4Δr (the two sides of the pin in its hole, both lugs)."""
+    sweep = tmp_path / "sw"
+    argv = ["sweep", "--clearance", "0,0.1", "--amplitude", "100,200,300,400"]
+    argv += ["--size", "4", "--contact-size", "2", "--out", str(sweep), "--json"]
+    assert main(argv) == 0
+    out = tmp_path / "red"
+    assert main(["reduce", str(sweep), "--out", str(out), "--no-fmu", "--json"]) == 0
+    capsys.readouterr()
+    with (out / "validation.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    zero = [r for r in rows if r["design"] == "clearance_mm=0"]
+    assert len(zero) == 4
+    for r in zero:  # measured on this sweep: +0.10 %, -0.07 %, -0.04 %
+        for fe_key, el_key, tol in (
+            ("eta_fe", "eta_el", 0.05),
+            ("d_plus_fe_mm", "d_plus_el_mm", 0.02),
+            ("d_minus_fe_mm", "d_minus_el_mm", 0.02),
+        ):
+            assert float(r[el_key]) == pytest.approx(float(r[fe_key]), rel=tol), (r, el_key)
+    fit = json.loads((out / "clearance_mm_0.1" / "fit.json").read_text())
+    assert fit["params"]["free_play_mm"] == pytest.approx(0.4, rel=1e-9)
+    assert fit["free_play_geometry_mm"] == pytest.approx(0.4, rel=1e-9)
