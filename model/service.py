@@ -23,7 +23,7 @@ import dataclasses
 import logging
 import time
 from collections import OrderedDict
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,6 +46,9 @@ from model.spec import (
 from model.store import ResultStore
 
 logger = logging.getLogger(__name__)
+
+FAILURES = (HingelabError, ArithmeticError, RuntimeError, ValueError, MemoryError)
+"""What makes one point fail while the others go on (``ModelService.run``)."""
 
 
 @dataclass
@@ -137,6 +140,12 @@ class ModelService:
             label and the geometry key; None: no files).
         max_geometries: Prepared geometries kept in memory (the least recently used is
             dropped); None keeps all (a diagnosis revisits every clearance).
+        runner: A ``model.cluster.ClusterRunner``: the points ``run`` and ``run_jobs``
+            compute go to its Dask workers (None: computed in this process).
+
+    Attributes:
+        n_computed: Cycles computed (here or on the runner's workers) since it was made.
+        n_cached: Cycles read back from the store.
     """
 
     def __init__(
@@ -146,14 +155,17 @@ class ModelService:
         cache_dir: Path | None = None,
         geometry_dir: Callable[[str], Path] | None = None,
         max_geometries: int | None = None,
+        runner: Any = None,
     ) -> None:
         self.store = store
+        self.runner = runner
         self.cache_dir = cache_dir
         self.geometry_dir = geometry_dir
         self.max_geometries = max_geometries
         self._prepared: OrderedDict[str, Prepared] = OrderedDict()
         self.n_computed = 0
         self.n_cached = 0
+        self._remote: dict[str, CycleResult | BaseException] = {}
         self.setup_s = 0.0
         self.cycle_s = 0.0
 
@@ -255,6 +267,10 @@ class ModelService:
         groups: dict[str, list[tuple[str, DesignPoint]]] = {}
         for key, p in unique.items():
             groups.setdefault(geometry_key(spec, p), []).append((key, p))
+        if self.runner is not None:  # the misses computed on the cluster, then read below
+            pairs = [(key, p) for members in groups.values() for key, p in members]
+            outcomes = self.run_jobs([(spec, p) for _, p in pairs])
+            self._remote = {key: o for (key, _), o in zip(pairs, outcomes, strict=True)}
         out: list[PointRun] = []
         for members in groups.values():
             for key, p in members:
@@ -265,6 +281,11 @@ class ModelService:
         return out
 
     def _one(self, spec: ModelSpec, key: str, p: DesignPoint, keep_going: bool) -> PointRun:
+        remote = self._remote.pop(key, None)
+        if isinstance(remote, CycleResult):  # computed on the runner's cluster in this call
+            return PointRun(p, key, remote, cached=False)
+        if isinstance(remote, BaseException):
+            return self._failed(spec, key, p, remote, None, 0.0, keep_going)
         hit = None if self.store is None else self.store.get(key)
         if hit is not None:
             self.n_cached += 1
@@ -278,22 +299,93 @@ class ModelService:
             if self.store is not None:
                 self.store.put(key, result)
             return PointRun(p, key, result, prepared=prepared, wall_s=time.perf_counter() - t0)
-        except (HingelabError, ArithmeticError, RuntimeError, ValueError, MemoryError) as err:
-            if not keep_going:
-                raise
-            partial = getattr(err, "partial", None)
-            where = "geometry" if prepared is None else "point"
-            msg = f"{where} failed: {type(err).__name__}: {err}"
-            logger.error("%s: %s", point_label(spec, p), msg)
-            return PointRun(
-                p,
-                key,
-                None,
-                error=msg,
-                prepared=prepared,
-                partial=partial if isinstance(partial, CycleResult) else None,
-                wall_s=time.perf_counter() - t0,
-            )
+        except FAILURES as err:
+            return self._failed(spec, key, p, err, prepared, time.perf_counter() - t0, keep_going)
+
+    def _failed(
+        self,
+        spec: ModelSpec,
+        key: str,
+        p: DesignPoint,
+        err: BaseException,
+        prepared: Prepared | None,
+        wall_s: float,
+        keep_going: bool,
+    ) -> PointRun:
+        if not keep_going or not isinstance(err, FAILURES):
+            raise err
+        partial = getattr(err, "partial", None)
+        where = "geometry" if prepared is None else "point"
+        msg = f"{where} failed: {type(err).__name__}: {err}"
+        logger.error("%s: %s", point_label(spec, p), msg)
+        return PointRun(
+            p,
+            key,
+            None,
+            error=msg,
+            prepared=prepared,
+            partial=partial if isinstance(partial, CycleResult) else None,
+            wall_s=wall_s,
+        )
+
+    def run_jobs(
+        self, jobs: Sequence[tuple[ModelSpec, DesignPoint]]
+    ) -> list[CycleResult | BaseException]:
+        """Each job's cycle, or the error that stopped it; the jobs are independent.
+
+        A stored result is read back; the others are computed, each distinct key once, on
+        the runner's Dask workers (all jobs of a geometry on one worker) or else here, one
+        geometry after another, and stored the moment they arrive. The specs may differ
+        (μ, effects): one prepared geometry serves every spec that shares it.
+
+        Args:
+            jobs: (spec, design point) pairs.
+
+        Returns:
+            One entry per job, in order: its ``CycleResult`` or the exception it raised
+            (a refused spec too).
+        """
+        out: list[CycleResult | BaseException | None] = [None] * len(jobs)
+        resolved: list[tuple[ModelSpec, DesignPoint]] = []
+        first: dict[str, int] = {}  # result key → first job with it
+        keys: list[str] = []
+        for i, (spec, p) in enumerate(jobs):
+            try:
+                check_spec(spec)
+                spec = resolve_structural(spec)
+                key = result_key(spec, p)
+            except FAILURES as err:
+                out[i], key = err, f"refused-{i}"
+            resolved.append((spec, p))
+            keys.append(key)
+            if out[i] is not None or key in first:
+                continue
+            hit = None if self.store is None else self.store.get(key)
+            if hit is not None:
+                self.n_cached += 1
+                out[i] = hit
+            first[key] = i
+        todo = [i for i in first.values() if out[i] is None]
+        todo.sort(key=lambda i: geometry_key(*resolved[i]))  # one geometry after another
+        if self.runner is not None:
+
+            def arrived(j: int, result: CycleResult | None, err: BaseException | None) -> None:
+                i = todo[j]
+                if result is not None:
+                    self.n_computed += 1
+                    if self.store is not None:
+                        self.store.put(keys[i], result)
+                out[i] = result if result is not None else err
+
+            self.runner.run([resolved[i] for i in todo], arrived)
+        else:
+            for i in todo:
+                try:
+                    out[i] = self.run_point(*resolved[i])
+                except FAILURES as err:
+                    out[i] = err
+        done = [out[first.get(keys[i], i)] if out[i] is None else out[i] for i in range(len(jobs))]
+        return [o if o is not None else RuntimeError("job not run") for o in done]
 
 
 def design_points(

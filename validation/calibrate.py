@@ -24,7 +24,13 @@ import numpy as np
 from cad.errors import ParameterError
 from model.jsonio import dumps
 from model.spec import ModelSpec
-from validation.candidate_fit import DiagnoseSettings, chi2, fit_candidate, measured_features
+from validation.candidate_fit import (
+    DiagnoseSettings,
+    chi2,
+    fit_candidate,
+    grid_effects,
+    measured_features,
+)
 from validation.evaluate import ModelEvaluator
 from validation.measurements import MeasurementSet
 
@@ -92,12 +98,16 @@ def calibrate(
     settings: DiagnoseSettings | None = None,
     *,
     fit_mu: bool = False,
+    service: Any = None,
 ) -> tuple[ModelSpec, list[LedgerRow]]:
     """Fit μ (if asked) and then the named effects in turn; return the model and the ledger.
 
     μ changes no operator, so its fit reuses the factorisations; it comes first (the
     baseline model of the issue is "elasticity + Coulomb contact, μ calibrated"), bounded
     to ``MU_RANGE``, with its held-out error refitted on each fold (``holdout_folds``).
+    ``service``: the ``model.service.ModelService`` that runs the cycles (None: a new one
+    per step, in process, nothing stored); with a runner every evaluation's design
+    points run together as Dask tasks.
 
     Raises:
         ParameterError: An unknown effect or one already in the model.
@@ -112,7 +122,7 @@ def calibrate(
             raise ParameterError(f"--effects: {n!r} is already in the model")
     meas = measured_features(data, s.features)
     n_feat = meas.n_obs
-    ev = ModelEvaluator(spec, meas.points, s.increments_per_stage, s.clearance_increments)
+    ev = ModelEvaluator(spec, meas.points, s.increments_per_stage, s.clearance_increments, service)
     base = ev.features({})
     c = chi2(base, meas)
     err = math.sqrt(c / n_feat)
@@ -147,10 +157,13 @@ def calibrate(
             )
         )
     for k, name in enumerate(names, start=1 + k0):
+        ev.prefetch([(e, None) for e in grid_effects(name, s)])  # one batch on a cluster
         fit = fit_candidate(ev, name, meas, base, 1, s)
         # the model's own post-only effects come back re-tuned with the new one
         spec = dataclasses.replace(spec, effects={**spec.effects, **fit.model_effects})
-        ev = ModelEvaluator(spec, meas.points, s.increments_per_stage, s.clearance_increments)
+        ev = ModelEvaluator(
+            spec, meas.points, s.increments_per_stage, s.clearance_increments, service
+        )
         base = ev.features({})
         c = chi2(base, meas)
         held = max(fit.heldout_chi2, c)  # held-out never beats the in-sample fit

@@ -313,6 +313,16 @@ def _grid(hi: float, settings: DiagnoseSettings) -> FloatArray:
     return hi * 10.0 ** np.linspace(-settings.grid_decades, 0.0, settings.grid_points)
 
 
+def grid_effects(name: str, settings: DiagnoseSettings) -> list[dict[str, dict[str, float]]]:
+    """The effects ``fit_candidate`` evaluates on its grid for candidate ``name``, in order.
+
+    Independent of one another: a cluster runs them as one batch
+    (``validation.evaluate.ModelEvaluator.prefetch``) before the fit reads them.
+    """
+    spec = REGISTRY[name].params[0]
+    return [{name: {spec.name: float(p)}} for p in _grid(spec.hi, settings)]
+
+
 def _interp_features(grid: FloatArray, feats: FloatArray, p: float) -> FloatArray:
     """Linear interpolation in p of features on the grid, shape (n_points, 3)."""
     j = int(np.clip(np.searchsorted(grid, p) - 1, 0, len(grid) - 2))

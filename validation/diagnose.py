@@ -63,6 +63,7 @@ from validation.candidate_fit import (
     chi2,
     design_text,
     fit_candidate,
+    grid_effects,
     measured_features,
     residuals,
 )
@@ -322,6 +323,7 @@ def diagnose(
     data: MeasurementSet,
     settings: DiagnoseSettings | None = None,
     evaluator: ModelEvaluator | None = None,
+    service: Any = None,
 ) -> Diagnosis:
     """Rank the registry's candidate effects and give a verdict (module docstring).
 
@@ -330,6 +332,9 @@ def diagnose(
         data: The measurements.
         settings: Decision settings; defaults to ``DiagnoseSettings()``.
         evaluator: A ``ModelEvaluator`` to reuse (its cache), or None.
+        service: The ``model.service.ModelService`` of a new evaluator (None: in process,
+            nothing stored); with a runner the baseline and every candidate's grid run
+            as one batch of Dask tasks before the fits.
     """
     import time
 
@@ -339,7 +344,7 @@ def diagnose(
     t0 = time.perf_counter()
     meas = measured_features(data, s.features)
     ev = evaluator or ModelEvaluator(
-        spec, meas.points, s.increments_per_stage, s.clearance_increments
+        spec, meas.points, s.increments_per_stage, s.clearance_increments, service
     )
     base = ev.features({})
     c0 = chi2(base, meas)
@@ -363,6 +368,7 @@ def diagnose(
             skipped[name] = "not among the candidates asked for"
         else:
             names.append(name)
+    ev.prefetch([(e, None) for n in names for e in grid_effects(n, s)])  # the independent part
     fits = []
     for name in names:
         try:
@@ -385,6 +391,7 @@ def diagnose(
         sensitivity=sensitivity(meas, s.alpha, s.power),
         stats={
             "n_cycles": ev.n_cycles,
+            "n_computed": ev.service.n_computed,
             "cycle_s": ev.cycle_s,
             "setup_s": ev.setup_s,
             "wall_s": time.perf_counter() - t0,

@@ -53,6 +53,9 @@ class ModelEvaluator:
         increments_per_stage: Increments per load stage of the diagnosis runs (None:
             the model file's).
         clearance_increments: Increments across the free play (None: the model file's).
+        service: The ``model.service.ModelService`` that runs the cycles (None: a new
+            one keeping every geometry, no store). One with a store reads back what a
+            previous run computed; one with a runner computes on Dask (``prefetch``).
     """
 
     def __init__(
@@ -61,6 +64,7 @@ class ModelEvaluator:
         points: Sequence[tuple[float, float]],
         increments_per_stage: int | None = None,
         clearance_increments: int | None = None,
+        service: Any = None,
     ) -> None:
         self.spec = spec
         self.points = tuple(points)
@@ -72,7 +76,8 @@ class ModelEvaluator:
         self.cycle = cycle
         from model.service import ModelService
 
-        self.service = ModelService()  # every clearance's geometry kept: fits revisit them
+        # every clearance's geometry kept: fits revisit them
+        self.service = ModelService() if service is None else service
         self._loops: dict[tuple[Any, ...], tuple[FloatArray, FloatArray] | None] = {}
         self.n_cycles = 0
         self.cycle_s = 0.0
@@ -94,20 +99,12 @@ class ModelEvaluator:
         mu = self.cycle.mu if mu is None else float(mu)
         key = (point, _key(solve_effects), mu)
         if key not in self._loops:
-            from model.spec import DesignPoint
             from validation.synth import machine_path
 
-            x, amp = point
-            spec = dataclasses.replace(
-                self.spec,
-                cycle=dataclasses.replace(self.cycle, amplitude_n=amp, mu=mu),
-                effects=solve_effects,
-            )
+            spec, design = self._job(point, solve_effects, mu)
             t0 = time.perf_counter()
             setup0 = self.service.setup_s
             try:
-                variables = self.spec.hinge_kind.design_variables[:1]
-                design = DesignPoint(amp, {v.name: x for v in variables})
                 res = self.service.run_point(spec, design)
                 # the free play crossed at zero force, as the grips see it (no chord area)
                 self._loops[key] = machine_path(res)
@@ -122,6 +119,63 @@ class ModelEvaluator:
             self.cycle_s += time.perf_counter() - t0 - setup
         return self._loops[key]
 
+    def _job(
+        self, point: tuple[float, float], solve_effects: Effects, mu: float
+    ) -> tuple[Any, Any]:
+        """The (spec, design point) of one raw loop."""
+        from model.spec import DesignPoint
+
+        x, amp = point
+        spec = dataclasses.replace(
+            self.spec,
+            cycle=dataclasses.replace(self.cycle, amplitude_n=amp, mu=mu),
+            effects=solve_effects,
+        )
+        variables = self.spec.hinge_kind.design_variables[:1]
+        return spec, DesignPoint(amp, {v.name: x for v in variables})
+
+    def prefetch(self, requests: Sequence[tuple[Effects, float | None]]) -> None:
+        """Compute the loops ``features`` will need for each (effects, μ), as one batch.
+
+        Only with a service that has a runner (``model.cluster.ClusterRunner``): the
+        missing (design point, effects, μ) runs go to the Dask workers together, every
+        run of one geometry on one worker; the loops they return are the ones ``features``
+        would have computed, kept in the same cache. In process this does nothing (the
+        runs are made when asked for, as before). A request whose effects are refused,
+        or a run that fails, is left to ``features`` (which words the failure).
+
+        Args:
+            requests: (extra effects, μ or None) pairs, as ``features`` takes them.
+        """
+        if getattr(self.service, "runner", None) is None:
+            return
+        from fe.effects.registry import validate_effects
+        from validation.synth import machine_path
+
+        wanted: dict[tuple[Any, ...], tuple[Any, Any]] = {}
+        for effects, mu in requests:
+            try:
+                every = validate_effects({**self.spec.effects, **effects})
+            except HingelabError:
+                continue
+            solve = {n: p for n, p in every.items() if not is_post_only(n)}
+            m = self.cycle.mu if mu is None else float(mu)
+            for point in self.points:
+                key = (point, _key(solve), m)
+                if key not in self._loops and key not in wanted:
+                    wanted[key] = self._job(point, solve, m)
+        t0 = time.perf_counter()
+        outcomes = self.service.run_jobs(list(wanted.values()))
+        for key, res in zip(wanted, outcomes, strict=True):
+            if not isinstance(res, BaseException):
+                self._loops[key] = machine_path(res)
+                self.n_cycles += 1
+            elif isinstance(res, HingelabError) and not isinstance(res, EffectError):
+                logger.info("cycle failed at %s with %s: %s", key[0], dict(key[1]), res)
+                self._loops[key] = None
+                self.n_cycles += 1
+        self.cycle_s += time.perf_counter() - t0
+
     def features(self, effects: Effects, mu: float | None = None) -> FloatArray:
         """Return the features at every design point, shape (n_points, 3); NaN rows where it fails.
 
@@ -135,6 +189,7 @@ class ModelEvaluator:
         every = validate_effects({**self.spec.effects, **effects})
         solve = {n: p for n, p in every.items() if not is_post_only(n)}
         post = {n: p for n, p in every.items() if is_post_only(n)}
+        self.prefetch([(effects, mu)])  # on a cluster: every point at once
         out = np.full((len(self.points), 3), np.nan)
         for i, point in enumerate(self.points):
             raw = self._raw_loop(point, solve, mu)

@@ -106,6 +106,7 @@ def compare_and_write(
     *,
     free_play: bool = True,
     plots: bool = True,
+    service: Any = None,
 ) -> tuple[Comparison, dict[str, Any]]:
     """Run the model at every case, compare, write ``out/comparison.json``, loops and pictures.
 
@@ -116,6 +117,9 @@ def compare_and_write(
         settings: Pass/fail settings.
         free_play: Compare with the model loop including the 4Δr free play traverse.
         plots: Draw the pictures.
+        service: The ``model.service.ModelService`` to run the cases through (None: a new
+            one, in process, nothing stored; with a store a rerun reads the cycles back,
+            with a runner they run as Dask tasks).
 
     Returns:
         (the comparison, the report written to ``comparison.json``).
@@ -124,7 +128,7 @@ def compare_and_write(
 
     t0 = time.perf_counter()
     _check_cases(spec, data.cases)
-    models, runs = run_model_for_cases(spec, data.cases, with_free_play=free_play)
+    models, runs = run_model_for_cases(spec, data.cases, with_free_play=free_play, service=service)
     cmp = compare(models, data, settings)
     out.mkdir(parents=True, exist_ok=True)
     files: dict[str, Any] = {"model_loops": _write_model_loops(spec, runs, out, free_play)}

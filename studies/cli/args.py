@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from pathlib import Path
 from typing import Any
 
 from cad.errors import ParameterError
@@ -63,7 +65,7 @@ def add_mesh_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def add_cluster_arguments(p: argparse.ArgumentParser) -> None:
-    """Add where the points run (shared by ``sweep`` and ``study``)."""
+    """Add where the points run (``sweep``, ``study``, ``compare``, ``diagnose``, ``calibrate``)."""
     p.add_argument(
         "--workers",
         type=int,
@@ -78,6 +80,34 @@ def add_cluster_arguments(p: argparse.ArgumentParser) -> None:
         help="run on an existing Dask cluster, e.g. tcp://host:8786 "
         "(default: $DASK_SCHEDULER_ADDRESS, else no cluster)",
     )
+
+
+CLUSTER_OPTIONS: FieldOptions = {"workers": ("--workers",), "scheduler": ("--scheduler",)}
+"""The fields ``add_cluster_arguments`` sets (``model.cluster.Cluster``)."""
+
+
+@contextlib.contextmanager
+def model_service(args: argparse.Namespace, results: Path | None) -> Iterator[Any]:
+    """The ``ModelService`` a validation command runs its cycles through.
+
+    In this process by default; on a private ``LocalCluster`` with ``--workers N`` (N > 1)
+    or on the cluster at ``--scheduler`` (``model.cluster``), closed on exit.
+
+    Args:
+        args: The options (``--workers``, ``--scheduler``).
+        results: Folder of the result store (a rerun reads back what is there), or None.
+    """
+    from model.cluster import Cluster, ClusterRunner
+    from model.service import ModelService
+    from model.store import ResultStore
+
+    cluster = Cluster(workers=args.workers, scheduler=args.scheduler)
+    store = None if results is None else ResultStore(results)
+    if cluster.in_process:
+        yield ModelService(store=store)
+        return
+    with ClusterRunner(cluster) as runner:
+        yield ModelService(store=store, runner=runner)
 
 
 def settings_from_args(args: argparse.Namespace, *, cycle: bool = True) -> MeshSettings:

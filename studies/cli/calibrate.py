@@ -18,7 +18,13 @@ from typing import TYPE_CHECKING
 
 from cad.errors import ParameterError
 from model.jsonio import dumps
-from studies.cli.args import FIT_OPTIONS, add_fit_arguments
+from studies.cli.args import (
+    CLUSTER_OPTIONS,
+    FIT_OPTIONS,
+    add_cluster_arguments,
+    add_fit_arguments,
+    model_service,
+)
 from studies.outputs import check_writable_dir
 
 if TYPE_CHECKING:
@@ -30,6 +36,7 @@ FIELD_OPTIONS = {
     **FIT_OPTIONS,
     "default_rel_uncertainty": ("--uncertainty",),
     "eta_rel_sigma": ("--uncertainty",),
+    **CLUSTER_OPTIONS,
 }
 """Field → the options that set it: ``main`` words a refusal in the option the user typed."""
 
@@ -56,6 +63,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="stated relative σ of η-only cases, for the fit and the comparison (default 0.05)",
     )
     p.add_argument("--no-compare", action="store_true", help="do not re-run the comparison")
+    add_cluster_arguments(p)
     p.add_argument(
         "--fit",
         default=None,
@@ -103,11 +111,12 @@ def run(args: argparse.Namespace) -> int:
         clearance_increments=2 * args.increments,
     )
     check_writable_dir(args.out, "--out")  # before the fit, not after
-    new_spec, rows = calibrate(spec, data, names, settings, fit_mu=args.mu)
-    model_out = write_model(new_spec, args.out / "MODEL.toml")
-    every = append_ledger(args.out, rows)
-    png = plot_ledger(every, args.out / "ledger.png")
-    comparison = None if args.no_compare else _compare(new_spec, data, args)
+    with model_service(args, args.out / "results") as service:
+        new_spec, rows = calibrate(spec, data, names, settings, fit_mu=args.mu, service=service)
+        model_out = write_model(new_spec, args.out / "MODEL.toml")
+        every = append_ledger(args.out, rows)
+        png = plot_ledger(every, args.out / "ledger.png")
+        comparison = None if args.no_compare else _compare(new_spec, data, args, service)
     if args.json:
         print(
             dumps(
@@ -130,7 +139,9 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _compare(spec: ModelSpec, data: MeasurementSet, args: argparse.Namespace) -> dict[str, object]:
+def _compare(
+    spec: ModelSpec, data: MeasurementSet, args: argparse.Namespace, service: object = None
+) -> dict[str, object]:
     """Re-run the comparison with the calibrated model into ``args.out/compare``; its summary."""
     from validation.compare import CompareSettings
     from validation.features import FeatureSettings
@@ -145,6 +156,7 @@ def _compare(spec: ModelSpec, data: MeasurementSet, args: argparse.Namespace) ->
             default_rel_uncertainty=args.uncertainty,
             features=FeatureSettings(rel_floor=args.model_error, eta_rel_sigma=args.uncertainty),
         ),
+        service=service,
     )
     return {
         "n_pass": cmp.summary["n_pass"],

@@ -3,7 +3,9 @@
 ``hingelab compare MODEL.toml DATA_DIR --out DIR [--json]`` reads the model
 (``model.file``) and the measurements (``validation.measurements``), runs
 the cycle once per (clearance, amplitude) — one mesh and one factorisation per
-clearance, reused for every amplitude — compares (``validation.compare``) and writes
+clearance, reused for every amplitude; with ``--workers``/``--scheduler`` as Dask tasks,
+each clearance on one worker; kept in ``DIR/results``, so a rerun reads them back —
+compares (``validation.compare``) and writes
 into DIR: ``comparison.json``, the model loops as ``model_loops/*.csv`` and the
 pictures (``loops/<case>.png``, ``error_map.png``, ``residuals.png``,
 ``fingerprint.png``). The exit status is 0 whether cases pass or fail (the verdict is
@@ -19,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from model.jsonio import dumps
+from studies.cli.args import CLUSTER_OPTIONS, add_cluster_arguments, model_service
 from studies.outputs import check_writable_dir
 
 if TYPE_CHECKING:
@@ -29,6 +32,7 @@ FIELD_OPTIONS = {
     "k": ("--k",),
     "default_rel_uncertainty": ("--uncertainty",),
     "eta_rel_sigma": ("--uncertainty",),
+    **CLUSTER_OPTIONS,
 }
 """Field → the options that set it: ``main`` words a refusal in the option the user typed."""
 
@@ -60,6 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="compare with the model loop without the 4Δr free play (the test machine sees it)",
     )
     p.add_argument("--no-plots", action="store_true", help="skip the pictures")
+    add_cluster_arguments(p)
     p.add_argument(
         "--fail-on-mismatch",
         action="store_true",
@@ -91,14 +96,17 @@ def run(args: argparse.Namespace) -> int:
         features=FeatureSettings(eta_rel_sigma=args.uncertainty),
     )
     check_writable_dir(args.out, "--out")  # before the model runs, not after
-    cmp, report = compare_and_write(
-        spec,
-        data,
-        args.out,
-        settings,
-        free_play=not args.without_free_play,
-        plots=not args.no_plots,
-    )
+    with model_service(args, args.out / "results") as service:
+        cmp, report = compare_and_write(
+            spec,
+            data,
+            args.out,
+            settings,
+            free_play=not args.without_free_play,
+            plots=not args.no_plots,
+            service=service,
+        )
+    report["n_computed"] = service.n_computed
     report = {"model_file": str(args.model), "data": str(args.data), **report}
     (args.out / "comparison.json").write_text(dumps(report))
     if args.json:

@@ -1,11 +1,14 @@
 """``hingelab diagnose``: which candidate effect is missing from the model.
 
-``hingelab diagnose MODEL.toml DATA_DIR [--json]`` summarises every measured loop into
+``hingelab diagnose MODEL.toml DATA_DIR [--out DIR] [--workers N | --scheduler ADDRESS]
+[--json]`` summarises every measured loop into
 features (``validation.features``), fits every registry effect's parameter
 (``validation.diagnose``; one mesh and factorisation per clearance, reused for every
 candidate and value) and prints the residual pattern, the ranked candidates and the
 verdict: ``effect_missing``, ``no_missing_effect``, ``indistinguishable`` or
-``unexplained``. Exit status 0 whatever the verdict; 1 only for bad input.
+``unexplained``. The baseline and every candidate's grid are independent runs: with
+``--workers``/``--scheduler`` they run as one batch of Dask tasks, each geometry on one
+worker. Exit status 0 whatever the verdict; 1 only for bad input.
 """
 
 from __future__ import annotations
@@ -14,9 +17,15 @@ import argparse
 from pathlib import Path
 
 from model.jsonio import dumps
-from studies.cli.args import FIT_OPTIONS, add_fit_arguments
+from studies.cli.args import (
+    CLUSTER_OPTIONS,
+    FIT_OPTIONS,
+    add_cluster_arguments,
+    add_fit_arguments,
+    model_service,
+)
 
-FIELD_OPTIONS = {**FIT_OPTIONS, "candidates": ("--candidates",)}
+FIELD_OPTIONS = {**FIT_OPTIONS, **CLUSTER_OPTIONS, "candidates": ("--candidates",)}
 """Field → the options that set it: ``main`` words a refusal in the option the user typed."""
 
 
@@ -26,7 +35,16 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
     p.add_argument("data", type=Path, metavar="DATA_DIR", help="measurement folder (cases.csv)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="keep the cycles in DIR/results and write DIR/diagnosis.json; a rerun with the "
+        "same DIR reads the cycles back (default: nothing kept)",
+    )
     add_fit_arguments(p)
+    add_cluster_arguments(p)
     p.add_argument(
         "--alpha",
         type=float,
@@ -72,7 +90,14 @@ def run(args: argparse.Namespace) -> int:
         if args.candidates is None
         else tuple(n.strip() for n in args.candidates.split(",") if n.strip()),
     )
-    result = diagnose(spec, data, settings)
+    if args.out is not None:
+        from studies.outputs import check_writable_dir
+
+        check_writable_dir(args.out, "--out")  # before the model runs, not after
+    with model_service(args, None if args.out is None else args.out / "results") as service:
+        result = diagnose(spec, data, settings, service=service)
+    if args.out is not None:
+        (args.out / "diagnosis.json").write_text(dumps(result.to_dict()))
     if args.json:
         print(dumps(result.to_dict()))
     else:

@@ -1,0 +1,185 @@
+"""Model runs as Dask tasks: a private ``LocalCluster``, or an existing cluster by its address.
+
+What ``compare``, ``diagnose``, ``calibrate`` and the paper's validation run through
+``model.service.ModelService.run_jobs``: a batch of independent (spec, design point) jobs.
+``ClusterRunner`` sends every job of one geometry (``model.spec.geometry_key``) to one
+worker, which keeps a ``ModelService`` of its own and so builds, meshes and factorises
+each geometry once for all the μ, effects and amplitudes run on it. A worker computes the
+cycle and sends it back without the condensed operators; the calling process stores it
+(``model.store.ResultStore``) the moment it arrives, so an interrupted run keeps what
+finished and a rerun computes only the rest. The worker runs the same code as the
+in-process service, so the numbers are the same.
+
+A user's effect from a file travels with the spec (``ModelSpec.effect_sources``) and is
+registered on the worker when the spec is unpickled. A plug-in hinge kind must be
+installed (or on ``PYTHONPATH``) on the workers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from cad.errors import DataError, check_range
+from fe.cycle.result import CycleResult
+from model.spec import DesignPoint, ModelSpec, geometry_key
+
+logger = logging.getLogger(__name__)
+
+_WORKER_SERVICE: dict[str, Any] = {}
+_WORKER_LOCK = threading.Lock()  # a worker with several threads prepares each geometry once
+
+WORKER_GEOMETRIES = 4
+"""Prepared geometries a worker keeps (the least recently used is dropped): jobs of one
+geometry are pinned to one worker, which holds a share of the geometries."""
+
+
+@dataclass(frozen=True)
+class Cluster:
+    """Where model runs go: in this process (the default), local workers, or a scheduler.
+
+    Attributes:
+        workers: Local Dask worker processes (1: in this process, no Dask).
+        scheduler: Address of an existing Dask scheduler (``tcp://host:8786``), or None.
+    """
+
+    workers: int = 1
+    scheduler: str | None = None
+
+    def __post_init__(self) -> None:
+        check_range("workers", self.workers, 1, 256)
+
+    @property
+    def in_process(self) -> bool:
+        """True when nothing goes to Dask."""
+        return self.scheduler is None and self.workers <= 1
+
+
+def quiet_dask() -> None:
+    """Silence Dask's INFO/WARNING chatter unless the user asked for logs (-v)."""
+    if not logging.getLogger().isEnabledFor(logging.INFO):
+        for name in ("distributed", "distributed.client", "distributed.worker", "tornado"):
+            logging.getLogger(name).setLevel(logging.ERROR)
+
+
+def run_job(spec: ModelSpec, point: DesignPoint) -> CycleResult:
+    """Run one point on a worker (its geometry reused across the worker's jobs).
+
+    Returns:
+        The cycle without its condensed configurations (they stay with the geometry).
+    """
+    from model.service import ModelService
+
+    with _WORKER_LOCK:
+        service = _WORKER_SERVICE.setdefault(
+            "service", ModelService(max_geometries=WORKER_GEOMETRIES)
+        )
+        result = service.run_point(spec, point)
+    return dataclasses.replace(result, configs={})
+
+
+class ClusterRunner:
+    """A Dask client for model jobs; use as a context manager (it closes its cluster).
+
+    Args:
+        cluster: Local workers or a scheduler address.
+    """
+
+    def __init__(self, cluster: Cluster) -> None:
+        self.cluster = cluster
+        self._client: Any = None
+        self._local: Any = None
+
+    def __enter__(self) -> ClusterRunner:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def client(self) -> Any:
+        """The Dask client, connected on first use.
+
+        Raises:
+            DataError: If the scheduler cannot be reached (naming ``--scheduler`` and the address).
+        """
+        if self._client is not None:
+            return self._client
+        from dask.distributed import Client, LocalCluster
+
+        quiet_dask()
+        if self.cluster.scheduler is not None:
+            try:
+                self._client = Client(self.cluster.scheduler, timeout="10s")
+            except (OSError, TimeoutError) as err:
+                raise DataError(
+                    f"--scheduler {self.cluster.scheduler}: cannot connect to a Dask scheduler "
+                    f"({err})"
+                ) from err
+            return self._client
+        n = self.cluster.workers
+        self._local = LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+            # one worker per core: a worker's large LUs must not take a second thread
+            env={"HINGELAB_LU_THREADS": str(max(1, (os.cpu_count() or 1) // n))},
+        )
+        self._client = Client(self._local)
+        return self._client
+
+    def close(self) -> None:
+        """Close the client and the private cluster (if any)."""
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+        if self._local is not None:
+            self._local.close()
+            self._local = None
+
+    def run(
+        self,
+        jobs: Sequence[tuple[ModelSpec, DesignPoint]],
+        handle: Callable[[int, CycleResult | None, BaseException | None], None],
+    ) -> None:
+        """Run jobs as Dask tasks, all jobs of one geometry on one worker.
+
+        Args:
+            jobs: (spec, point) pairs, each a distinct result.
+            handle: Called in this process with (job index, result, None) or
+                (job index, None, the error the worker raised), in completion order.
+        """
+        from dask.distributed import as_completed
+
+        if not jobs:
+            return
+        client = self.client()
+        workers = sorted(client.scheduler_info()["workers"])
+        if not workers:
+            raise DataError("the Dask cluster has no workers")
+        geometry = [geometry_key(spec, p) for spec, p in jobs]
+        home = {g: workers[i % len(workers)] for i, g in enumerate(dict.fromkeys(geometry))}
+        futures = {
+            client.submit(
+                run_job, spec, p, pure=False, workers=[home[g]], allow_other_workers=False
+            ): i
+            for i, ((spec, p), g) in enumerate(zip(jobs, geometry, strict=True))
+        }
+        try:
+            for future in as_completed(list(futures)):
+                i = futures[future]
+                try:
+                    result = future.result()
+                except Exception as err:  # the worker's error, re-raised here by Dask
+                    handle(i, None, err)
+                else:
+                    handle(i, result, None)
+        except BaseException:
+            client.cancel(list(futures))
+            raise
