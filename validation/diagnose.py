@@ -41,6 +41,10 @@ Workflow (``diagnose``):
    above → ``indistinguishable``, with the design point where the two fitted models differ
    most); otherwise ``unexplained``, with the residual pattern in words
    (``validation.misfit``).
+6. **Signatures**: after ``unexplained``, or ``effect_missing`` with a residual left (then of
+   the model with that effect added), the residuals are tested against generic shapes
+   (``validation.signatures``: compliance, stiffening, a step at F = 0, drift, rate, an
+   amplitude-dependent loss) — a lead for what kind of effect to write, not a diagnosis.
 """
 
 from __future__ import annotations
@@ -72,6 +76,8 @@ from validation.features import FEATURES
 from validation.measurements import MeasurementSet
 from validation.misfit import residual_pattern
 from validation.sensitivity import power_words, sensitivity
+from validation.signature_data import signature_table
+from validation.signatures import SignatureTable
 
 __all__ = [
     "Diagnosis",
@@ -118,6 +124,8 @@ class Diagnosis:
         stats: Cycles run, times.
         sensitivity: Feature column → the smallest common relative error the data detect
             (``sensitivity``; None: no information).
+        signatures: For ``unexplained``, or ``effect_missing`` with a residual left: the
+            residual's generic signatures (``validation.signatures``); None otherwise.
     """
 
     verdict: Verdict
@@ -132,6 +140,7 @@ class Diagnosis:
     separating_test: str | None
     stats: Mapping[str, float]
     sensitivity: Mapping[str, float | None] = dataclasses.field(default_factory=dict)
+    signatures: SignatureTable | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "verdict", Verdict(self.verdict))  # also from its word
@@ -152,6 +161,7 @@ class Diagnosis:
             "separating_test": self.separating_test,
             "stats": dict(self.stats),
             "sensitivity": dict(self.sensitivity),
+            "signatures": None if self.signatures is None else self.signatures.to_dict(),
         }
 
     def text(self) -> str:
@@ -193,6 +203,8 @@ class Diagnosis:
             lines.append(f"  {n:<22} not tried: {why}")
         if self.separating_test:
             lines.append(f"to separate them: {self.separating_test}")
+        if self.signatures is not None:
+            lines.append(self.signatures.text())
         return "\n".join(lines)
 
 
@@ -377,6 +389,11 @@ def diagnose(
             skipped[name] = f"failed: {err}"
     fits.sort(key=lambda f: f.chi2)
     verdict, effects, message, sep = _verdict(fits, c0, n, limit, meas, s)
+    table = None
+    added = [f for f in fits if f.name in effects]  # effect_missing: test what it leaves
+    if verdict is Verdict.UNEXPLAINED or (added and added[0].chi2 > limit):
+        extra = {f.name: {f.param: f.value} for f in added}
+        table = signature_table(ev, data, meas, extra, s.features.rel_floor, s.alpha)
     return Diagnosis(
         verdict=verdict,
         effects=effects,
@@ -389,6 +406,7 @@ def diagnose(
         skipped=skipped,
         separating_test=sep,
         sensitivity=sensitivity(meas, s.alpha, s.power),
+        signatures=table,
         stats={
             "n_cycles": ev.n_cycles,
             "n_computed": ev.service.n_computed,

@@ -91,6 +91,9 @@ SIGNATURES = {
 }
 """Signature kind → (what it is in words, unit of its size, the kind of effect to write)."""
 
+LOSS_SIGNATURES = ("loss",)
+"""The signatures tested on the loss residuals (the others on the loop residuals)."""
+
 
 @dataclass(frozen=True)
 class LoopResidual:
@@ -245,9 +248,10 @@ class SignatureTable:
                 lines.append(f"  {r.kind:<11} {r.word}")
                 continue
             note = f" ({r.note})" if r.note else ""
+            share = f", explains {r.explained:.0%}" if r.significant else ""
             lines.append(
-                f"  {r.kind:<11} {r.size:+.3g} ± {r.size_sigma:.2g} {unit}{note}: p {r.p_value:.2g}, "
-                f"explains {r.explained:.0%} — {r.word}"
+                f"  {r.kind:<11} {r.size:+.3g} ± {r.size_sigma:.2g} {unit}{note}: "
+                f"p {r.p_value:.2g}{share} — {r.word}"
             )
         lines.append(self.summary())
         return "\n".join(lines)
@@ -374,7 +378,7 @@ def loop_signatures(
         loss: Loss-factor residuals, or None.
         alpha: False-alarm probability of the whole table.
     """
-    plans: dict[str, Any] = {k: "no loop records" for k in SIGNATURES if k != "loss"}
+    plans: dict[str, Any] = {k: "no loop records" for k in SIGNATURES if k not in LOSS_SIGNATURES}
     loop_test = None
     if loops:
         y = np.concatenate([lr.residual_mm for lr in loops])
@@ -389,7 +393,7 @@ def loop_signatures(
         if isinstance(plan, str):
             raw[kind] = None
             continue
-        test = loss_test if kind == "loss" else loop_test
+        test = loss_test if kind in LOSS_SIGNATURES else loop_test
         assert test is not None
         nuisance, options, note = plan
         tried = [(j, test.run(nuisance, terms, alpha)) for j, terms in enumerate(options)]
@@ -415,7 +419,7 @@ def loop_signatures(
             note = note or "its terms are not independent on these points"
         rows.append(Signature(kind, size, sigma, p, sig, explained, fits, note))
     together = None
-    sig_loop = [row.kind for row in rows if row.significant and row.kind != "loss"]
+    sig_loop = [row.kind for row in rows if row.significant and row.kind not in LOSS_SIGNATURES]
     if loop_test is not None and len(sig_loop) >= 2 and not any(r.fits for r in rows):
         explained, ok = loop_test.together([raw[k][5] for k in sig_loop], alpha)
         together = (tuple(sig_loop), explained, ok)
