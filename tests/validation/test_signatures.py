@@ -213,3 +213,23 @@ def test_diagnose_names_stiffening_on_independent_data(jenkins) -> None:  # type
     assert not rows["offset"].fits
     assert "signatures of the residual" in result.text()
     assert result.to_dict()["signatures"]["rows"][1]["kind"] == "stiffening"
+
+
+def test_the_report_shows_the_table_of_a_diagnosis(tmp_path: Path) -> None:
+    import json
+
+    from studies.report.validation import paper_validation_report
+
+    loops, loss = residual_set(np.random.default_rng(2), {"step": 0.01})
+    sig = loop_signatures(loops, loss, 0.01).to_dict()
+    diag = {"verdict": "unexplained", "message": "m", "candidates": [], "signatures": sig}
+    (tmp_path / "report.json").write_text(json.dumps({"diagnose_3x3": diag}))
+    body = paper_validation_report(tmp_path, tmp_path)
+    html = next(str(s.body) for s in body.sections if s.anchor == "diagnose_3x3")
+    assert "What kind of effect is missing" in html
+    assert html.count("<tr>") >= 8  # header + 7 signatures
+    assert "a lead, not a diagnosis" in html
+    del diag["signatures"]  # a diagnosis without the table (older, or explained) still shows
+    (tmp_path / "report.json").write_text(json.dumps({"diagnose_3x3": diag}))
+    body = paper_validation_report(tmp_path, tmp_path)
+    assert "What kind" not in next(str(s.body) for s in body.sections if s.anchor == "diagnose_3x3")
