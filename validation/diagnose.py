@@ -41,10 +41,11 @@ Workflow (``diagnose``):
    above → ``indistinguishable``, with the design point where the two fitted models differ
    most); otherwise ``unexplained``, with the residual pattern in words
    (``validation.misfit``).
-6. **Signatures**: after ``unexplained``, or ``effect_missing`` with a residual left (then of
-   the model with that effect added), the residuals are tested against generic shapes
-   (``validation.signatures``: compliance, stiffening, a step at F = 0, drift, rate, an
-   amplitude-dependent loss) — a lead for what kind of effect to write, not a diagnosis.
+6. **Signatures**: after ``unexplained``, or ``effect_missing`` with a residual left, the
+   residuals of the model with the best significant candidate added (if any) are tested
+   against generic shapes (``validation.signatures``: compliance, stiffening, a step at
+   F = 0, drift, rate, an amplitude-dependent loss) — a lead for what kind of effect to
+   write, not a diagnosis.
 """
 
 from __future__ import annotations
@@ -125,7 +126,8 @@ class Diagnosis:
         sensitivity: Feature column → the smallest common relative error the data detect
             (``sensitivity``; None: no information).
         signatures: For ``unexplained``, or ``effect_missing`` with a residual left: the
-            residual's generic signatures (``validation.signatures``); None otherwise.
+            generic signatures (``validation.signatures``) of the residual of the model with
+            the best significant candidate added (as it is when there is none); None otherwise.
     """
 
     verdict: Verdict
@@ -315,6 +317,11 @@ def _verdict(
     )
 
 
+def c_left(best: list[CandidateFit], limit: float) -> bool:
+    """Whether the best candidate leaves χ² above the noise limit (a residual to look at)."""
+    return bool(best) and best[0].chi2 > limit
+
+
 def refusal(spec: ModelSpec, name: str) -> str | None:
     """Why the model cannot take effect ``name`` (its kind's checks), or None if it can."""
     import dataclasses
@@ -390,9 +397,11 @@ def diagnose(
     fits.sort(key=lambda f: f.chi2)
     verdict, effects, message, sep = _verdict(fits, c0, n, limit, meas, s)
     table = None
-    added = [f for f in fits if f.name in effects]  # effect_missing: test what it leaves
-    if verdict is Verdict.UNEXPLAINED or (added and added[0].chi2 > limit):
-        extra = {f.name: {f.param: f.value} for f in added}
+    best = [f for f in fits if f.counts][:1]  # the residual left beside the best candidate
+    if verdict is Verdict.UNEXPLAINED or (
+        verdict is Verdict.EFFECT_MISSING and c_left(best, limit)
+    ):
+        extra = {f.name: {f.param: f.value} for f in best}
         table = signature_table(ev, data, meas, extra, s.features.rel_floor, s.alpha)
     return Diagnosis(
         verdict=verdict,

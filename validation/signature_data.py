@@ -142,4 +142,8 @@ def signature_table(
                 loops.append(loop_residual(measured, model, rec.time_s, cid, rel_floor))
             except HingelabError:
                 continue
-    return loop_signatures(loops, loss_residual(ev.features(effects), meas), alpha)
+    added = ", ".join(
+        f"{n} ({', '.join(f'{k} = {v:.3g}' for k, v in p.items())})" for n, p in effects.items()
+    )
+    of = f"the model with {added} added" if added else "the model as it is"
+    return loop_signatures(loops, loss_residual(ev.features(effects), meas), alpha, of)

@@ -203,12 +203,14 @@ class SignatureTable:
         n_tested: m, the signatures tested (the Bonferroni factor).
         together: The significant signatures fitted together: (kinds, explained
             fraction, fits), or None when fewer than two are significant or one fits.
+        residual_of: Which model's residual was tested, in words.
     """
 
     rows: tuple[Signature, ...]
     alpha: float
     n_tested: int
     together: tuple[tuple[str, ...], float, bool] | None = None
+    residual_of: str = "the model"
 
     @property
     def fitting(self) -> tuple[str, ...]:
@@ -239,8 +241,8 @@ class SignatureTable:
     def text(self) -> str:
         """Return the table as lines of text."""
         lines = [
-            f"signatures of the residual (measured − model), α = {self.alpha:g} over "
-            f"{self.n_tested} tested:"
+            f"signatures of the residual (measured − {self.residual_of}), α = {self.alpha:g} "
+            f"over {self.n_tested} tested:"
         ]
         for r in self.rows:
             unit = SIGNATURES[r.kind][1]
@@ -264,6 +266,7 @@ class SignatureTable:
             together = {"kinds": list(kinds), "explained": explained, "fits": ok}
         return {
             "alpha": self.alpha,
+            "residual_of": self.residual_of,
             "n_tested": self.n_tested,
             "rows": [r.to_dict() for r in self.rows],
             "fitting": list(self.fitting),
@@ -370,6 +373,7 @@ def loop_signatures(
     loops: Sequence[LoopResidual],
     loss: LossResidual | None,
     alpha: float,
+    residual_of: str = "the model",
 ) -> SignatureTable:
     """Test the loop and loss residuals against every signature (module docstring).
 
@@ -377,6 +381,7 @@ def loop_signatures(
         loops: Branch residuals of the records (may be empty: η-only data).
         loss: Loss-factor residuals, or None.
         alpha: False-alarm probability of the whole table.
+        residual_of: Which model's residual it is, in words.
     """
     plans: dict[str, Any] = {k: "no loop records" for k in SIGNATURES if k not in LOSS_SIGNATURES}
     loop_test = None
@@ -423,7 +428,7 @@ def loop_signatures(
     if loop_test is not None and len(sig_loop) >= 2 and not any(r.fits for r in rows):
         explained, ok = loop_test.together([raw[k][5] for k in sig_loop], alpha)
         together = (tuple(sig_loop), explained, ok)
-    return SignatureTable(tuple(rows), alpha, m, together)
+    return SignatureTable(tuple(rows), alpha, m, together, residual_of)
 
 
 def _loss_plan(loss: LossResidual | None) -> Any:
