@@ -41,6 +41,11 @@ Workflow (``diagnose``):
    above → ``indistinguishable``, with the design point where the two fitted models differ
    most); otherwise ``unexplained``, with the residual pattern in words
    (``validation.misfit``).
+6. **Signatures**: after ``unexplained``, or ``effect_missing`` with a residual left, the
+   residuals of the model with the best significant candidate added (if any) are tested
+   against generic shapes (``validation.signatures``: compliance, stiffening, a step at
+   F = 0, drift, rate, an amplitude-dependent loss) — a lead for what kind of effect to
+   write, not a diagnosis.
 """
 
 from __future__ import annotations
@@ -72,6 +77,8 @@ from validation.features import FEATURES
 from validation.measurements import MeasurementSet
 from validation.misfit import residual_pattern
 from validation.sensitivity import power_words, sensitivity
+from validation.signature_data import signature_table
+from validation.signatures import SignatureTable
 
 __all__ = [
     "Diagnosis",
@@ -118,6 +125,9 @@ class Diagnosis:
         stats: Cycles run, times.
         sensitivity: Feature column → the smallest common relative error the data detect
             (``sensitivity``; None: no information).
+        signatures: For ``unexplained``, or ``effect_missing`` with a residual left: the
+            generic signatures (``validation.signatures``) of the residual of the model with
+            the best significant candidate added (as it is when there is none); None otherwise.
     """
 
     verdict: Verdict
@@ -132,6 +142,7 @@ class Diagnosis:
     separating_test: str | None
     stats: Mapping[str, float]
     sensitivity: Mapping[str, float | None] = dataclasses.field(default_factory=dict)
+    signatures: SignatureTable | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "verdict", Verdict(self.verdict))  # also from its word
@@ -152,6 +163,7 @@ class Diagnosis:
             "separating_test": self.separating_test,
             "stats": dict(self.stats),
             "sensitivity": dict(self.sensitivity),
+            "signatures": None if self.signatures is None else self.signatures.to_dict(),
         }
 
     def text(self) -> str:
@@ -193,6 +205,8 @@ class Diagnosis:
             lines.append(f"  {n:<22} not tried: {why}")
         if self.separating_test:
             lines.append(f"to separate them: {self.separating_test}")
+        if self.signatures is not None:
+            lines.append(self.signatures.text())
         return "\n".join(lines)
 
 
@@ -303,6 +317,11 @@ def _verdict(
     )
 
 
+def c_left(best: list[CandidateFit], limit: float) -> bool:
+    """Whether the best candidate leaves χ² above the noise limit (a residual to look at)."""
+    return bool(best) and best[0].chi2 > limit
+
+
 def refusal(spec: ModelSpec, name: str) -> str | None:
     """Why the model cannot take effect ``name`` (its kind's checks), or None if it can."""
     import dataclasses
@@ -377,6 +396,13 @@ def diagnose(
             skipped[name] = f"failed: {err}"
     fits.sort(key=lambda f: f.chi2)
     verdict, effects, message, sep = _verdict(fits, c0, n, limit, meas, s)
+    table = None
+    best = [f for f in fits if f.counts][:1]  # the residual left beside the best candidate
+    if verdict is Verdict.UNEXPLAINED or (
+        verdict is Verdict.EFFECT_MISSING and c_left(best, limit)
+    ):
+        extra = {f.name: {f.param: f.value} for f in best}
+        table = signature_table(ev, data, meas, extra, s.features.rel_floor, s.alpha)
     return Diagnosis(
         verdict=verdict,
         effects=effects,
@@ -389,6 +415,7 @@ def diagnose(
         skipped=skipped,
         separating_test=sep,
         sensitivity=sensitivity(meas, s.alpha, s.power),
+        signatures=table,
         stats={
             "n_cycles": ev.n_cycles,
             "n_computed": ev.service.n_computed,

@@ -22,7 +22,7 @@ import numpy.typing as npt
 from cad.errors import EffectError, HingelabError
 from model.spec import ModelSpec
 from validation.features import loop_features
-from validation.loops import process_loop
+from validation.loops import ProcessedLoop, process_loop
 
 FloatArray = npt.NDArray[np.float64]
 Effects = Mapping[str, Mapping[str, float]]
@@ -184,24 +184,38 @@ class ModelEvaluator:
             mu: Friction coefficient of the runs (None: the model file's). μ changes no
                 operator, so every value reuses the same factorisation and condensation.
         """
+        out = np.full((len(self.points), 3), np.nan)
+        for i, loop in enumerate(self.loops(effects, mu)):
+            if loop is not None:
+                out[i] = loop_features(loop)
+        return out
+
+    def loops(self, effects: Effects, mu: float | None = None) -> list[ProcessedLoop | None]:
+        """Return the processed model loop at every design point; None where it fails.
+
+        Args:
+            effects: Extra effects, as in ``features``.
+            mu: Friction coefficient, as in ``features``.
+        """
         from fe.effects.registry import post_process, validate_effects
 
         every = validate_effects({**self.spec.effects, **effects})
         solve = {n: p for n, p in every.items() if not is_post_only(n)}
         post = {n: p for n, p in every.items() if is_post_only(n)}
         self.prefetch([(effects, mu)])  # on a cluster: every point at once
-        out = np.full((len(self.points), 3), np.nan)
-        for i, point in enumerate(self.points):
+        out: list[ProcessedLoop | None] = []
+        for point in self.points:
             raw = self._raw_loop(point, solve, mu)
-            if raw is None:
-                continue
-            F, d = raw
-            rate = self.cycle.force_rate_n_per_s  # the protocol's clock
-            d2 = post_process(F, d, post, force_rate_n_per_s=rate) if post else d
-            try:
-                out[i] = loop_features(process_loop(F, d2, f"model {point}"))
-            except HingelabError:
-                continue
+            loop = None
+            if raw is not None:
+                F, d = raw
+                rate = self.cycle.force_rate_n_per_s  # the protocol's clock
+                d2 = post_process(F, d, post, force_rate_n_per_s=rate) if post else d
+                try:
+                    loop = process_loop(F, d2, f"model {point}")
+                except HingelabError:
+                    loop = None
+            out.append(loop)
         return out
 
 

@@ -44,7 +44,9 @@ METRIC_LABELS = {
 def _error_cell(case: Mapping[str, Any], metric: str) -> object:
     errors = case.get("errors") or {}
     if metric in (case.get("not_measurable") or []):
-        return tag("span", "n/m", cls="na", title="not measurable at this noise: neither pass nor fail")
+        return tag(
+            "span", "n/m", cls="na", title="not measurable at this noise: neither pass nor fail"
+        )
     if metric not in errors:
         return "—"
     text = pct(errors[metric])
@@ -259,7 +261,32 @@ def _diagnosis(folder: Path, label: str, d: Mapping[str, Any]) -> Html:
                 [("χ² baseline", d.get("chi2_base")), ("χ² noise limit", d.get("chi2_noise_limit"))]
             ),
             table(["candidate", "parameter", "value", "unit", "χ²"], rows) if rows else Html(""),
+            _signatures(d.get("signatures")),
             tag("pre", txt.read_text(encoding="utf-8")) if txt.is_file() else Html(""),
+        ]
+    )
+
+
+def _signatures(sig: Mapping[str, Any] | None) -> Html:
+    """The residual's signature table of an unexplained diagnosis (``validation.signatures``)."""
+    if not sig:
+        return Html("")
+    rows = [
+        [
+            r.get("kind"),
+            r.get("what"),
+            r.get("size"),
+            r.get("unit"),
+            r.get("p_value"),
+            r.get("word"),
+        ]
+        for r in sig.get("rows") or []
+    ]
+    return join(
+        [
+            tag("p", f"What kind of effect is missing (α = {fmt(sig.get('alpha'))}):"),
+            table(["signature", "shape", "size", "unit", "p", "at α"], rows),
+            tag("p", str(sig.get("summary", ""))),
         ]
     )
 
