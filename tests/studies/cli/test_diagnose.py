@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import types
 
 import numpy as np
 import pytest
@@ -27,7 +28,7 @@ def stubs(monkeypatch):
     from validation.calibrate import LedgerRow
     from validation.diagnose import Diagnosis
 
-    def fake_diagnose(spec, data, settings=None, evaluator=None):
+    def fake_diagnose(spec, data, settings=None, evaluator=None, **kwargs):
         return Diagnosis(
             "no_missing_effect",
             (),
@@ -42,7 +43,7 @@ def stubs(monkeypatch):
             {"n_cycles": 0, "wall_s": 0.0},
         )
 
-    def fake_calibrate(spec, data, names, settings=None, fit_mu=False):
+    def fake_calibrate(spec, data, names, settings=None, fit_mu=False, **kwargs):
         rows = [
             LedgerRow("baseline", {}, 0, 900.0, 8.7, 8.7, 900.0, 900.0),
             LedgerRow(
@@ -64,9 +65,9 @@ def stubs(monkeypatch):
 
     monkeypatch.setattr(validation.diagnose, "diagnose", fake_diagnose)
     monkeypatch.setattr(validation.calibrate, "calibrate", fake_calibrate)
-    monkeypatch.setattr(validation.measurements, "read_measurement_set", lambda path: None)
+    no_cases = types.SimpleNamespace(cases=())  # a force-controlled set as far as the CLI asks
+    monkeypatch.setattr(validation.measurements, "read_measurement_set", lambda path: no_cases)
 
-    import types
 
     import validation.workflow
 
