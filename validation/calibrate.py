@@ -59,6 +59,10 @@ class LedgerRow:
         n_fitted: Design points within 2σ on every feature (``feature_misfit``).
         n_points: Design points.
         fitted_cases: Case ids of the fitted design points.
+        file_chi2: The last row only: χ² of the written model at its own increments
+            (``compare``'s runs; the fit may use fewer), None on the other rows.
+        file_error: Likewise sqrt(χ²/N): the error ``compare`` reports for the model file.
+        file_n_fitted: Likewise the design points within 2σ on every feature.
     """
 
     step: str
@@ -77,6 +81,9 @@ class LedgerRow:
     n_fitted: int = 0
     n_points: int = 0
     fitted_cases: tuple[str, ...] = ()
+    file_chi2: float | None = None
+    file_error: float | None = None
+    file_n_fitted: int | None = None
 
 
 def model_parameters(spec: ModelSpec) -> dict[str, float]:
@@ -210,6 +217,11 @@ def calibrate(
                 **_fitted(base, meas, data),
             )
         )
+    # the written model as compare runs it: its own increments, not the fit's
+    final = feature_misfit(ModelEvaluator(spec, meas.points).features({}), meas)
+    rows[-1] = dataclasses.replace(
+        rows[-1], file_chi2=final.chi2, file_error=final.error, file_n_fitted=final.n_fitted
+    )
     return spec, rows
 
 
