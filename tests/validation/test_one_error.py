@@ -124,7 +124,10 @@ def write_set(folder: Path, truth: Truth, seed: int = 7) -> Path:
         for amp in AMPLITUDES:
             cid = f"s{slip:g}_a{amp:g}"
             F, d = generate(slip, amp, truth, rng)
-            lines = ["force_N,displacement_mm", *(f"{a:.6f},{b:.8f}" for a, b in zip(F, d))]
+            lines = [
+                "force_N,displacement_mm",
+                *(f"{a:.6f},{b:.8f}" for a, b in zip(F, d, strict=True)),
+            ]
             (folder / f"{cid}.csv").write_text("\n".join(lines) + "\n")
             rows.append(f"{cid},jenkins_pin,{slip:g},{amp:g},{cid}.csv")
     (folder / "cases.csv").write_text("\n".join(rows) + "\n")
@@ -214,9 +217,11 @@ def test_two_correlated_effects_are_recovered_jointly(jenkins, tmp_path) -> None
     assert final[slider] == pytest.approx(C_SLIDER, rel=0.2)
     assert final[frame] == pytest.approx(C_FRAME, rel=0.2)
     assert slider in rows[-1].moved
-    assert rows[-1].sigma[slider] < 0.2 * C_SLIDER and rows[-1].sigma[frame] < 0.2 * C_FRAME
+    assert rows[-1].sigma[slider] < 0.2 * C_SLIDER
+    assert rows[-1].sigma[frame] < 0.2 * C_FRAME
     assert rows[-1].correlation[slider][frame] < -0.2  # both soften: they trade off
-    assert rows[0].error > 5.0 and rows[-1].error < 1.0
+    assert rows[0].error > 5.0
+    assert rows[-1].error < 1.0
     # the written file, read back, compared: the ledger's error and fitted cases
     written = read_model(write_model(new, tmp_path / "cal" / "MODEL.toml"))
     cmp = _compare(written, data)
