@@ -1,12 +1,17 @@
 """Add effects to a model, fit their parameters and keep an error ledger.
 
-``calibrate`` fits μ if asked (first), then the named effects one after another (each by
-``validation.candidate_fit.fit_candidate`` on the model that already holds the ones before
-it), and returns the extended model and one ledger row per step: baseline → +effect → …
-with the parameters added, the error ``sqrt(χ²/N)`` (RMS feature residual in σ; ≈ 1 at
-the noise level), the held-out error, AIC = χ² + 2k and BIC = χ² + k ln N (k: effect
-parameters fitted so far). ``append_ledger`` adds rows to ``ledger.json``/``ledger.csv``
-in a folder and ``plot_ledger`` draws the error per step.
+``calibrate`` fits μ if asked (first), then adds the named effects one after another:
+each is first fitted alone on the model that holds the ones before it
+(``validation.candidate_fit.fit_candidate``, the **greedy** value, kept in the ledger), and
+then the primary parameter of **every** effect in the model is re-fitted jointly from the
+previous values (``validation.joint_fit``: σ and correlations from the Jacobian, and the
+parameters that moved by more than their σ). It returns the extended model and one ledger
+row per step: baseline → +effect → … with the parameters, the error ``sqrt(χ²/N)`` (RMS
+feature residual in σ; ≈ 1 at the noise level) and the design points within 2σ on every
+feature (``validation.feature_misfit``: the same function, features and σ that
+``compare`` reports for the written model), the held-out error, AIC = χ² + 2k and BIC =
+χ² + k ln N (k: parameters fitted so far). ``append_ledger`` adds rows to
+``ledger.json``/``ledger.csv`` in a folder and ``plot_ledger`` draws the error per step.
 """
 
 from __future__ import annotations
@@ -32,6 +37,8 @@ from validation.candidate_fit import (
     measured_features,
 )
 from validation.evaluate import ModelEvaluator
+from validation.feature_misfit import feature_misfit, fitted_cases
+from validation.joint_fit import joint_fit
 from validation.measurements import MeasurementSet
 
 
@@ -51,6 +58,17 @@ class LedgerRow:
         model: Every parameter of the model after this step (``mu`` and
             ``effect.parameter``), re-tuned earlier ones included: what the model file
             written at this step holds.
+        greedy: The step's parameter fitted alone, before the joint re-fit.
+        sigma: ``effect.param`` → σ of the jointly fitted values.
+        correlation: ``effect.param`` → ``effect.param`` → their correlation.
+        moved: Parameters that moved by more than their σ in this step's joint re-fit.
+        n_fitted: Design points within 2σ on every feature (``feature_misfit``).
+        n_points: Design points.
+        fitted_cases: Case ids of the fitted design points.
+        file_chi2: The last row only: χ² of the written model at its own increments
+            (``compare``'s runs; the fit may use fewer), None on the other rows.
+        file_error: Likewise sqrt(χ²/N): the error ``compare`` reports for the model file.
+        file_n_fitted: Likewise the design points within 2σ on every feature.
     """
 
     step: str
@@ -62,6 +80,16 @@ class LedgerRow:
     aic: float
     bic: float
     model: dict[str, float] = dataclasses.field(default_factory=dict)
+    greedy: dict[str, float] = dataclasses.field(default_factory=dict)
+    sigma: dict[str, float] = dataclasses.field(default_factory=dict)
+    correlation: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
+    moved: tuple[str, ...] = ()
+    n_fitted: int = 0
+    n_points: int = 0
+    fitted_cases: tuple[str, ...] = ()
+    file_chi2: float | None = None
+    file_error: float | None = None
+    file_n_fitted: int | None = None
 
 
 def model_parameters(spec: ModelSpec) -> dict[str, float]:
@@ -126,7 +154,20 @@ def calibrate(
     base = ev.features({})
     c = chi2(base, meas)
     err = math.sqrt(c / n_feat)
-    rows = [LedgerRow("baseline", {}, 0, c, err, err, c, c, model_parameters(spec))]
+    rows = [
+        LedgerRow(
+            "baseline",
+            {},
+            0,
+            c,
+            err,
+            err,
+            c,
+            c,
+            model_parameters(spec),
+            **_fitted(base, meas, data),
+        )
+    ]
     k0 = 0
     if fit_mu:
         from validation.candidate_fit import holdout_folds
@@ -154,23 +195,27 @@ def calibrate(
                 c + 2,
                 c + math.log(n_feat),
                 model_parameters(spec),
+                **_fitted(base, meas, data),
             )
         )
     for k, name in enumerate(names, start=1 + k0):
         ev.prefetch([(e, None) for e in grid_effects(name, s)])  # one batch on a cluster
         fit = fit_candidate(ev, name, meas, base, 1, s)
-        # the model's own post-only effects come back re-tuned with the new one
-        spec = dataclasses.replace(spec, effects={**spec.effects, **fit.model_effects})
-        ev = ModelEvaluator(
-            spec, meas.points, s.increments_per_stage, s.clearance_increments, service
-        )
-        base = ev.features({})
+        before = model_parameters(spec)
+        # previous values (the model's own post-only effects as the candidate fit re-tuned
+        # them) and the new effect's greedy value
+        start = {n: dict(p) for n, p in {**spec.effects, **fit.model_effects}.items()}
+        start[name] = {**start.get(name, {}), fit.param: fit.value}
+        joint = joint_fit(ev, start, meas, previous=before)
+        spec = dataclasses.replace(spec, effects=joint.effects)
+        ev.spec = spec  # its cached runs stay valid: they are keyed by the effects
+        base = joint.features
         c = chi2(base, meas)
         held = max(fit.heldout_chi2, c)  # held-out never beats the in-sample fit
         rows.append(
             LedgerRow(
                 f"+{name}",
-                {f"{name}.{fit.param}": fit.value},
+                {f"{name}.{fit.param}": joint.values[f"{name}.{fit.param}"]},
                 k,
                 c,
                 math.sqrt(c / n_feat),
@@ -178,9 +223,29 @@ def calibrate(
                 c + 2 * k,
                 c + k * math.log(n_feat),
                 model_parameters(spec),
+                greedy={f"{name}.{fit.param}": fit.value},
+                sigma=joint.sigma,
+                correlation=joint.correlation,
+                moved=joint.moved,
+                **_fitted(base, meas, data),
             )
         )
+    # the written model as compare runs it: its own increments, not the fit's
+    final = feature_misfit(ModelEvaluator(spec, meas.points).features({}), meas)
+    rows[-1] = dataclasses.replace(
+        rows[-1], file_chi2=final.chi2, file_error=final.error, file_n_fitted=final.n_fitted
+    )
     return spec, rows
+
+
+def _fitted(model: Any, meas: Any, data: MeasurementSet) -> dict[str, Any]:
+    """The ledger's fitted design points (``validation.feature_misfit``), as row fields."""
+    m = feature_misfit(model, meas)
+    return {
+        "n_fitted": m.n_fitted,
+        "n_points": len(m.point_fitted),
+        "fitted_cases": tuple(fitted_cases(m, data)),
+    }
 
 
 def append_ledger(out: Path, rows: Sequence[LedgerRow]) -> list[dict[str, Any]]:
@@ -188,7 +253,7 @@ def append_ledger(out: Path, rows: Sequence[LedgerRow]) -> list[dict[str, Any]]:
     out.mkdir(parents=True, exist_ok=True)
     path = out / "ledger.json"
     old: list[dict[str, Any]] = json.loads(path.read_text()) if path.is_file() else []
-    new = [dataclasses.asdict(r) for r in rows]
+    new = json.loads(dumps([dataclasses.asdict(r) for r in rows]))  # tuples as JSON lists
     if old and new and new[0]["step"] == "baseline":
         new = new[1:]  # the baseline of a later round is the last step of the previous one
     every = old + new

@@ -4,7 +4,10 @@ For every case both loops go through ``validation.loops.process_loop`` (same off
 stages, closing rule), then five errors are formed (``METRICS``):
 
 * ``disp_at_peak_mm``, ``W_cycle_Nmm``, ``eta``, ``secant_stiffness_N_per_mm``: the
-  relative error ``(model − measured) / |measured|``; with clearance W and η are those of
+  relative error ``(model − measured) / |measured|``; δ(+Fg) from the **centre of the last
+  loop** on both sides (``disp_at_peak_from_start_mm`` keeps δ from the first samples): a
+  transducer's zero is arbitrary, and a real pin rests against one side of its clearance
+  while the model's starts centred; with clearance W and η are those of
   the loop **without the free play** (``validation.hysteresis``: the zero-force crossings
   cut out of both loops at the same forces), whose area the force noise during the
   crossing no longer swamps;
@@ -58,6 +61,7 @@ import numpy as np
 
 from cad.errors import DataError, check_range
 from fe.kinds import hinge_kind
+from validation.feature_misfit import feature_summary
 from validation.features import FeatureSettings, feature_sigma, loop_features
 from validation.fingerprint import FingerprintFit, fingerprint
 from validation.hysteresis import (
@@ -70,7 +74,7 @@ from validation.hysteresis import (
     judge_loops,
 )
 from validation.loop_files import Loop
-from validation.loops import ProcessedLoop, loop_distance, noise_level, process_loop, zero_band_n
+from validation.loops import ProcessedLoop, loop_distance, process_loop, zero_band_n
 from validation.measurements import Case, MeasurementSet
 
 METRICS = ("disp_at_peak_mm", "W_cycle_Nmm", "eta", "secant_stiffness_N_per_mm", "rms_loop")
@@ -192,7 +196,8 @@ class Comparison:
         cases: Per-case comparisons in measurement order.
         settings: The judging settings.
         summary: Per metric: n, bias (mean error), rms, max |error| and its case;
-            plus n_cases, n_pass, n_fail.
+            plus n_cases, n_pass, n_fail, and ``features``: the calibrate ledger's error
+            (``validation.feature_misfit.feature_summary``).
         fingerprint: One fit per group of cases differing only in amplitude (≥ 2 amplitudes).
     """
 
@@ -294,15 +299,8 @@ def _record_sigma(
         return {}
     sig = feature_sigma([meas], f, None)  # absolute: δ_max, W, opening (noise ⊕ floor)
     r_delta = _ratio(sig[0], loop_features(meas)[0])
-    m = meas.metrics
-    peak = max(abs(m.disp_at_peak_mm), 1e-300)
-    # δ(+Fg) is one sample (δ_max averages two peaks): its full displacement noise counts
-    s_peak = math.hypot(
-        noise_level(meas.displacement_mm),
-        _ratio(m.delta_max_mm, m.f_max_n) * noise_level(meas.force_n),
-    )
     base = {
-        "disp_at_peak_mm": _ratio(math.hypot(s_peak, f.rel_floor * m.delta_max_mm), peak),
+        "disp_at_peak_mm": r_delta,  # δ(+Fg) about the loop centre is δ_max
         "secant_stiffness_N_per_mm": r_delta,
         "rms_loop": s.default_rel_uncertainty if "rms_loop" not in rep else 0.0,
     }
@@ -345,6 +343,9 @@ def _case_errors(
             raise DataError(f"case {case.case_id!r}: neither a loop nor η to compare with")
         return {"eta": case.eta}, mod, {"eta": relative_error(mod["eta"], case.eta)}, None
     mea = meas.metrics.as_dict()
+    for side in (mea, mod):  # δ(+Fg) about the loop's centre: the zero is arbitrary
+        side["disp_at_peak_from_start_mm"] = side["disp_at_peak_mm"]
+        side["disp_at_peak_mm"] = side["delta_max_mm"]
     errors = {m: relative_error(mod[m], mea[m]) for m in _LOOP_METRICS}
     rms = loop_distance(meas, model)
     errors["rms_loop"] = relative_error(rms + meas.metrics.delta_max_mm, meas.metrics.delta_max_mm)
@@ -407,22 +408,16 @@ def compare(
         mod_all = {**mod, **{f"fe_{k}": float(v) for k, v in res.metrics.items()}}
         out.append(
             CaseComparison(
-                case,
-                mea,
-                mod_all,
-                errors,
-                unc,
-                source,
-                failed,
-                rms,
-                loops[cid],
-                model,
-                judged,
+                case, mea, mod_all, errors, unc, source, failed, rms, loops[cid], model, judged,
                 removed,
             )
-        )
+        )  # fmt: skip
     cases = tuple(out)
-    return Comparison(cases, s, _summary(cases), fingerprint(cases))
+    summary = _summary(cases)
+    summary["features"] = feature_summary(
+        measurements, {c.case.case_id: c.model_loop for c in cases}, s.features
+    )
+    return Comparison(cases, s, summary, fingerprint(cases))
 
 
 def _judge_hysteresis(

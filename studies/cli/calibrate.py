@@ -130,11 +130,23 @@ def run(args: argparse.Namespace) -> int:
                 f"{r['step']:<24} error {r['error']:8.2f} σ  held-out {r['heldout_error']:8.2f} σ  "
                 f"BIC {r['bic']:9.1f}  {params}"
             )
-        print(f"model written to {model_out}; ledger in {args.out}/ (ledger.json, .csv, .png)")
-        if comparison is not None:
+        last = every[-1]
+        for key in last.get("moved", []):
             print(
-                f"compare with the new model: {comparison['n_pass']}/{comparison['n_cases']} "
-                f"cases pass; details in {comparison['folder']}/"
+                f"moved: {key} changed by more than its σ ({last['sigma'][key]:.3g}) in the joint re-fit"
+            )
+        print(f"model written to {model_out}; ledger in {args.out}/ (ledger.json, .csv, .png)")
+        if last.get("file_error") is not None:
+            print(
+                f"the written model at its own increments: error {last['file_error']:.2f} σ, "
+                f"{last['file_n_fitted']}/{last['n_points']} design points within 2σ"
+            )
+        if comparison is not None:
+            feats = comparison["features"]
+            error = f"error {feats['error']:.2f} σ, " if "error" in feats else ""
+            print(
+                f"compare with the new model: {error}{comparison['n_pass']}/"
+                f"{comparison['n_cases']} cases pass; details in {comparison['folder']}/"
             )
     return 0
 
@@ -162,5 +174,6 @@ def _compare(
         "n_pass": cmp.summary["n_pass"],
         "n_cases": cmp.summary["n_cases"],
         "passed": {c.case.case_id: c.passed for c in cmp.cases},
+        "features": cmp.summary.get("features", {}),
         "folder": str(folder),
     }

@@ -209,6 +209,13 @@ def format_table(cmp: Comparison) -> str:
         "RMS is the loop distance / δ_max; n/m: not measurable, neither pass nor fail)"
     )
     lines += _hysteresis_notes(cmp)
+    feats = s.get("features", {})
+    if "error" in feats:  # the number calibrate's ledger reports (validation.feature_misfit)
+        lines.append(
+            f"feature error {feats['error']:.2f} σ (δ_max, W, opening; χ² {feats['chi2']:.4g} over "
+            f"{feats['n_obs']}), {feats['n_fitted']}/{feats['n_points']} design points within "
+            f"{feats['k']:g}σ: the calibrate ledger's measure"
+        )
     if fp:
         lines.append(f"fingerprint — {fp}")
     return "\n".join(lines)
