@@ -202,10 +202,8 @@ def calibrate(
         ev.prefetch([(e, None) for e in grid_effects(name, s)])  # one batch on a cluster
         fit = fit_candidate(ev, name, meas, base, 1, s)
         before = model_parameters(spec)
-        # previous values (the model's own post-only effects as the candidate fit re-tuned
-        # them) and the new effect's greedy value
-        start = {n: dict(p) for n, p in {**spec.effects, **fit.model_effects}.items()}
-        start[name] = {**start.get(name, {}), fit.param: fit.value}
+        start = {n: dict(p) for n, p in spec.effects.items()}  # previous values …
+        start[name] = {fit.param: fit.value}  # … and the new effect's greedy value
         joint = joint_fit(ev, start, meas, previous=before)
         spec = dataclasses.replace(spec, effects=joint.effects)
         ev.spec = spec  # its cached runs stay valid: they are keyed by the effects
