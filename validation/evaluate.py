@@ -350,9 +350,8 @@ def loop_at_record_times(
     the time at which the record passed the same force on the same ramp
     (``fe.effects.history.time_from_reference``), and the loop effects (``post``) are
     applied at those times. Without a time-dependent effect this is the loop the spec's
-    own run gives. How ``compare`` uses it: for a case whose record has ``time_s``, take
-    ``F, d = loop_at_record_times(spec, point_of(spec, case), case.loop.force_n,
-    case.loop.time_s, service)`` as the model's loop instead of ``machine_path()``.
+    own run gives. ``compare`` does the same per case (``validation.workflow``), the
+    evaluator per record clock (``ModelEvaluator.record_loops``).
 
     Args:
         spec: The model (its effects on).
