@@ -150,7 +150,9 @@ def calibrate(
             raise ParameterError(f"--effects: {n!r} is already in the model")
     meas = measured_features(data, s.features)
     n_feat = meas.n_obs
-    ev = ModelEvaluator(spec, meas.points, s.increments_per_stage, s.clearance_increments, service)
+    ev = ModelEvaluator(
+        spec, meas.points, s.increments_per_stage, s.clearance_increments, service, meas.clocks
+    )
     base = ev.features({})
     c = chi2(base, meas)
     err = math.sqrt(c / n_feat)
@@ -229,7 +231,7 @@ def calibrate(
             )
         )
     # the written model as compare runs it: its own increments, not the fit's
-    final = feature_misfit(ModelEvaluator(spec, meas.points).features({}), meas)
+    final = feature_misfit(ModelEvaluator(spec, meas.points, clocks=meas.clocks).features({}), meas)
     rows[-1] = dataclasses.replace(
         rows[-1], file_chi2=final.chi2, file_error=final.error, file_n_fitted=final.n_fitted
     )

@@ -19,7 +19,7 @@ from scipy import optimize, stats
 from cad.errors import ParameterError
 from fe.effects.registry import REGISTRY
 from fe.kinds import DEFAULT_KIND, DesignVariable, hinge_kind
-from validation.evaluate import ModelEvaluator
+from validation.evaluate import Clock, ModelEvaluator
 from validation.features import FeatureSettings, derived, feature_sigma, loop_features
 from validation.loops import process_loop
 from validation.measurements import MeasurementSet
@@ -94,6 +94,9 @@ class MeasuredFeatures:
         hinge: The hinge kind of the rows (its first design variable is in ``points``).
         max_rel_sigma: Features with σ > max_rel_sigma·|value| are uninformative
             (``FeatureSettings.max_rel_sigma``); inf keeps every finite feature.
+        clocks: Per row, its loop records as ``validation.evaluate.Clock`` (case id, force,
+            time; None without ``time_s``), whose clocks a time-dependent loop effect is
+            evaluated at; a row without any ``time_s`` has none (the protocol's clock).
     """
 
     points: tuple[tuple[float, float], ...]
@@ -103,6 +106,7 @@ class MeasuredFeatures:
     max_rel_sigma: float = math.inf
     clearance_mm: tuple[float, ...] | None = None
     hinge: str = DEFAULT_KIND
+    clocks: tuple[tuple[Clock, ...], ...] = ()
 
     @property
     def variable(self) -> DesignVariable | None:
@@ -154,6 +158,7 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
     ``rel_floor · η + eta_floor``.
     """
     points, values, sigmas, eta_only, clearances = [], [], [], [], []
+    clocks: list[tuple[Clock, ...]] = []
     by_id = data.by_id()
     hinges = set()
     for (hinge, pairs, amp), ids in data.replicate_groups().items():
@@ -161,12 +166,15 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
         design = dict(pairs)
         loops = []
         etas = []
+        row: list[Clock] = []
         for cid in ids:
             case = by_id[cid]
             if case.loop is not None:
                 loops.append(
                     process_loop(case.loop.force_n, case.loop.displacement_mm, case.loop.source)
                 )
+                t = case.loop.time_s
+                row.append((cid, case.loop.force_n, t) if t is not None else (cid, None, None))
             elif case.eta is not None:
                 etas.append(float(case.eta))
         variables = hinge_kind(hinge).design_variables
@@ -179,6 +187,7 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
             values.append(feats.mean(axis=0))
             sigmas.append(feature_sigma(loops, settings, rep))
             eta_only.append(False)
+            clocks.append(tuple(row) if any(c[2] is not None for c in row) else ())
         elif etas:
             eta = float(np.mean(etas))
             rep_eta = float(np.std(etas, ddof=1)) if len(etas) > 1 else 0.0
@@ -190,6 +199,7 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
             values.append(np.array([np.nan, eta, np.nan]))
             sigmas.append(np.array([np.nan, s_eta, np.nan]))
             eta_only.append(True)
+            clocks.append(())
         else:
             points.pop()
     return MeasuredFeatures(
@@ -200,6 +210,7 @@ def measured_features(data: MeasurementSet, settings: FeatureSettings) -> Measur
         settings.max_rel_sigma,
         tuple(clearances),
         hinges.pop() if len(hinges) == 1 else DEFAULT_KIND,
+        tuple(clocks),
     )
 
 

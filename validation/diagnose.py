@@ -363,7 +363,7 @@ def diagnose(
     t0 = time.perf_counter()
     meas = measured_features(data, s.features)
     ev = evaluator or ModelEvaluator(
-        spec, meas.points, s.increments_per_stage, s.clearance_increments, service
+        spec, meas.points, s.increments_per_stage, s.clearance_increments, service, meas.clocks
     )
     base = ev.features({})
     c0 = chi2(base, meas)

@@ -6,6 +6,18 @@ with the reused base configurations: effects never refactorise). Effects that ac
 after the solve (their ``apply`` is the identity, e.g. ``frame_compliance``) cost no
 cycle: the loop computed without them is post-processed. Every run is cached by
 (design point, effects), so the baseline and the grid points of a fit are computed once.
+
+**Record clocks.** A loop effect that depends on time (a damper) is evaluated at each
+measured record's own clock when the record has ``time_s`` (``clocks``; the time at which
+the record passed the model's force on the same ramp, ``fe.effects.history``), else at
+the protocol's (``[cycle] force_rate_n_per_s``). The measured features of a design point
+are the mean over its records (``validation.candidate_fit.measured_features``), so the
+model's are too: one model loop per record, its features averaged over the records of
+the row. Records loaded at different rates are therefore best kept apart as design points
+(a ``cond_rate_N_per_s`` column in ``cases.csv`` makes the rate part of the design point;
+as replicates, their scatter would include the rate's effect). An effect that does not
+depend on time (the output is the same on a warped clock, ``depends_on_time``) gives
+exactly the protocol-clock numbers, one loop per row, as before.
 """
 
 from __future__ import annotations
@@ -19,13 +31,15 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from cad.errors import EffectError, HingelabError
+from cad.errors import DataError, EffectError, HingelabError
 from model.spec import ModelSpec
 from validation.features import loop_features
 from validation.loops import ProcessedLoop, process_loop
 
 FloatArray = npt.NDArray[np.float64]
 Effects = Mapping[str, Mapping[str, float]]
+Clock = tuple[str, FloatArray | None, FloatArray | None]
+"""A record of a design point: (case id, its force (m,) [N], its time (m,) [s]); no time: None."""
 logger = logging.getLogger(__name__)
 
 
@@ -56,6 +70,9 @@ class ModelEvaluator:
         service: The ``model.service.ModelService`` that runs the cycles (None: a new
             one keeping every geometry, no store). One with a store reads back what a
             previous run computed; one with a runner computes on Dask (``prefetch``).
+        clocks: Per design point, its loop records (``Clock``; ``MeasuredFeatures.clocks``),
+            whose clocks a time-dependent loop effect is evaluated at (module docstring);
+            None or empty: the protocol's clock.
     """
 
     def __init__(
@@ -65,9 +82,14 @@ class ModelEvaluator:
         increments_per_stage: int | None = None,
         clearance_increments: int | None = None,
         service: Any = None,
+        clocks: Sequence[Sequence[Clock]] | None = None,
     ) -> None:
         self.spec = spec
         self.points = tuple(points)
+        self.clocks = tuple(tuple(c) for c in clocks) if clocks else ()
+        if self.clocks and len(self.clocks) != len(self.points):
+            raise ValueError(f"{len(self.clocks)} clocks for {len(self.points)} design points")
+        self._times: dict[tuple[Any, ...], FloatArray] = {}
         cycle = spec.cycle
         if increments_per_stage is not None:
             cycle = dataclasses.replace(cycle, increments_per_stage=increments_per_stage)
@@ -185,17 +207,35 @@ class ModelEvaluator:
                 operator, so every value reuses the same factorisation and condensation.
         """
         out = np.full((len(self.points), 3), np.nan)
-        for i, loop in enumerate(self.loops(effects, mu)):
-            if loop is not None:
-                out[i] = loop_features(loop)
+        for i, row in enumerate(self.record_loops(effects, mu)):
+            feats = [loop_features(loop) for _, loop in row if loop is not None]
+            if len(feats) == len(row) and feats:
+                out[i] = average_features(feats)
         return out
 
     def loops(self, effects: Effects, mu: float | None = None) -> list[ProcessedLoop | None]:
         """Return the processed model loop at every design point; None where it fails.
 
+        With a time-dependent loop effect and record clocks, the loop at the row's first
+        record's clock (``record_loops`` has them all).
+
         Args:
             effects: Extra effects, as in ``features``.
             mu: Friction coefficient, as in ``features``.
+        """
+        return [row[0][1] for row in self.record_loops(effects, mu)]
+
+    def record_loops(
+        self, effects: Effects, mu: float | None = None
+    ) -> list[list[tuple[str | None, ProcessedLoop | None]]]:
+        """Return, per design point, (case id, processed model loop) per record clock.
+
+        One entry (case id None) at the protocol's clock when no loop effect depends on
+        time or the row has no clocks; else one per record of the row, each at that
+        record's ``time_s`` (the protocol's clock for a record without it).
+
+        Raises:
+            DataError: A record whose ramps the model's path cannot be timed on.
         """
         from fe.effects.registry import post_process, validate_effects
 
@@ -203,20 +243,87 @@ class ModelEvaluator:
         solve = {n: p for n, p in every.items() if not is_post_only(n)}
         post = {n: p for n, p in every.items() if is_post_only(n)}
         self.prefetch([(effects, mu)])  # on a cluster: every point at once
-        out: list[ProcessedLoop | None] = []
-        for point in self.points:
+        out: list[list[tuple[str | None, ProcessedLoop | None]]] = []
+        for i, point in enumerate(self.points):
             raw = self._raw_loop(point, solve, mu)
-            loop = None
-            if raw is not None:
-                F, d = raw
-                rate = self.cycle.force_rate_n_per_s  # the protocol's clock
-                d2 = post_process(F, d, post, force_rate_n_per_s=rate) if post else d
-                try:
-                    loop = process_loop(F, d2, f"model {point}")
-                except HingelabError:
-                    loop = None
-            out.append(loop)
+            if raw is None:
+                out.append([(None, None)])
+                continue
+            F, d = raw
+            rate = self.cycle.force_rate_n_per_s  # the protocol's clock
+            d2 = post_process(F, d, post, force_rate_n_per_s=rate) if post else d
+            clocks = self.clocks[i] if self.clocks else ()
+            if not clocks or not post or not depends_on_time(F, d, post, d2, rate):
+                out.append([(None, _processed(F, d2, f"model {point}"))])
+                continue
+            row: list[tuple[str | None, ProcessedLoop | None]] = []
+            for cid, ref_F, ref_t in clocks:
+                if ref_F is None or ref_t is None:
+                    row.append((cid, _processed(F, d2, f"model {point}")))
+                    continue
+                tkey = (point, _key(solve), self.cycle.mu if mu is None else float(mu), cid)
+                if tkey not in self._times:
+                    self._times[tkey] = record_time(F, ref_F, ref_t, cid)
+                d_rec = post_process(F, d, post, time_s=self._times[tkey])
+                row.append((cid, _processed(F, d_rec, f"model {point} at {cid}'s clock")))
+            out.append(row)
         return out
+
+
+def _processed(F: FloatArray, d: FloatArray, source: str) -> ProcessedLoop | None:
+    try:
+        return process_loop(F, d, source)
+    except HingelabError:
+        return None
+
+
+def average_features(feats: Sequence[FloatArray]) -> FloatArray:
+    """The mean of the features of a row's model loops, as measured replicates are averaged.
+
+    Identical rows (no time-dependent effect) give the first exactly, not a rounded mean.
+    """
+    first = np.asarray(feats[0], dtype=np.float64)
+    if all(np.array_equal(first, f, equal_nan=True) for f in feats[1:]):
+        return first
+    return np.asarray(np.mean(np.asarray(feats, dtype=np.float64), axis=0), dtype=np.float64)
+
+
+def depends_on_time(
+    force_n: FloatArray,
+    disp_mm: FloatArray,
+    post: Effects,
+    at_protocol: FloatArray,
+    rate_n_per_s: float,
+) -> bool:
+    """True when the loop effects ``post`` give another loop on another clock.
+
+    The effects are evaluated once more on a warped protocol clock (t (1 + t/t_end):
+    other rates, other ratios) and compared with ``at_protocol`` (their output on the
+    protocol's clock): an effect that never reads ``time_s`` gives the same array.
+    """
+    from fe.effects.history import protocol_time
+    from fe.effects.registry import post_process
+
+    t = protocol_time(force_n, rate_n_per_s)
+    end = float(t[-1]) if t.size and t[-1] > 0 else 1.0
+    warped = post_process(force_n, disp_mm, post, time_s=t * (1.0 + t / end))
+    return not np.array_equal(warped, at_protocol)
+
+
+def record_time(
+    force_n: FloatArray, ref_force_n: FloatArray, ref_time_s: FloatArray, case_id: str
+) -> FloatArray:
+    """The time of a model path on record ``case_id``'s clock (``time_from_reference``).
+
+    Raises:
+        DataError: Naming the case, when its ramps cannot time the model's path.
+    """
+    from fe.effects.history import time_from_reference
+
+    try:
+        return time_from_reference(force_n, ref_force_n, ref_time_s)
+    except DataError as err:
+        raise DataError(f"case {case_id!r}: {err}") from err
 
 
 def split_post_only(effects: Effects) -> tuple[Effects, Effects]:
@@ -243,9 +350,8 @@ def loop_at_record_times(
     the time at which the record passed the same force on the same ramp
     (``fe.effects.history.time_from_reference``), and the loop effects (``post``) are
     applied at those times. Without a time-dependent effect this is the loop the spec's
-    own run gives. How ``compare`` uses it: for a case whose record has ``time_s``, take
-    ``F, d = loop_at_record_times(spec, point_of(spec, case), case.loop.force_n,
-    case.loop.time_s, service)`` as the model's loop instead of ``machine_path()``.
+    own run gives. ``compare`` does the same per case (``validation.workflow``), the
+    evaluator per record clock (``ModelEvaluator.record_loops``).
 
     Args:
         spec: The model (its effects on).

@@ -27,6 +27,7 @@ import numpy as np
 
 from cad.errors import DataError
 from validation.candidate_fit import FloatArray, MeasuredFeatures, measured_features, residuals
+from validation.evaluate import average_features
 from validation.features import FeatureSettings, loop_features
 from validation.loops import ProcessedLoop
 from validation.measurements import MeasurementSet
@@ -99,13 +100,20 @@ def model_features_of_loops(
 ) -> FloatArray:
     """Features of the model's loops per design point, shape (n_points, 3).
 
-    Replicates share one design point and so one model loop: the first case's is used.
+    Replicates share one design point; their model loops differ only when a loop effect
+    depends on time (each at its record's clock): the features are then averaged over the
+    point's records, as ``validation.evaluate.ModelEvaluator.features`` does (identical
+    loops give the first's features exactly).
 
     Args:
         data: The measured cases.
         model_loops: case_id → the processed model loop of that case.
     """
-    rows = [loop_features(model_loops[ids[0]]) for ids in group_case_ids(data)]
+    by_id = data.by_id()
+    rows = []
+    for ids in group_case_ids(data):
+        looped = [i for i in ids if by_id[i].loop is not None] or list(ids[:1])
+        rows.append(average_features([loop_features(model_loops[i]) for i in looped]))
     return np.array(rows, dtype=np.float64).reshape(len(rows), 3)
 
 

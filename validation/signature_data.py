@@ -123,7 +123,9 @@ def signature_table(
         rel_floor: The model floor of the σ.
         alpha: False-alarm probability of the table.
     """
-    model_loops = ev.loops(effects)
+    model_rows = ev.record_loops(effects)
+    # a time-dependent effect: the model's loop at each record's own clock
+    at_clock = {cid: loop for row in model_rows for cid, loop in row if cid is not None}
     by_id = data.by_id()
     loops = []
     for (hinge, pairs, amp), ids in data.replicate_groups().items():
@@ -131,9 +133,10 @@ def signature_table(
         point = (dict(pairs)[variables[0].name] if variables else 0.0, amp)
         if point not in ev.points:
             continue
-        model = model_loops[ev.points.index(point)]
+        row = model_rows[ev.points.index(point)]
         for cid in ids:
             case = by_id[cid]
+            model = at_clock.get(cid, row[0][1])
             if model is None or case.loop is None or case.control is not Control.FORCE:
                 continue
             rec = case.loop

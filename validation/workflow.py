@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -52,7 +53,10 @@ def run_model_for_cases(
     one factorisation and one pair of condensed configurations per clearance (one for
     every preload of the bearing hinge), reused for every amplitude there; replicates
     share one run. The model's effects (``spec.effects``, e.g. written by
-    ``hingelab calibrate``) are switched on.
+    ``hingelab calibrate``) are switched on. A loop effect that depends on time (a damper)
+    is evaluated at each record's own ``time_s`` (``_at_record_clocks``), so replicates at
+    different loading rates get different model loops; the metrics stay the protocol
+    clock's.
 
     Returns:
         (case_id → ModelResult, design point → CycleResult).
@@ -74,7 +78,52 @@ def run_model_for_cases(
         F, d = r.machine_path() if free_play else r.loop_arrays()[:2]
         source = f"model: {describe_point(spec, p)}"
         out[c.case_id] = ModelResult(Loop(F, d, None, source), r.metrics())
+    timed = [
+        c for c in cases if with_free_play and c.loop is not None and c.loop.time_s is not None
+    ]
+    if timed:
+        _at_record_clocks(spec, timed, points, runs, out, service)
     return out, runs
+
+
+def _at_record_clocks(
+    spec: ModelSpec,
+    cases: Sequence[Case],
+    points: dict[str, DesignPoint],
+    runs: dict[DesignPoint, Any],
+    out: dict[str, ModelResult],
+    service: Any,
+) -> None:
+    """Replace the loops of ``cases`` (records with ``time_s``) by the loop at their clock.
+
+    Only when a loop effect depends on time (``validation.evaluate.depends_on_time``, probed
+    on the first run's path): the cycle is run without the loop effects, and those are
+    applied at the time the record passed each force (``validation.evaluate.record_time``).
+    """
+    from fe.effects.registry import post_process
+    from validation.evaluate import depends_on_time, record_time, split_post_only
+
+    solve, post = split_post_only(spec.effects)
+    if not post:
+        return
+    rate = spec.cycle.force_rate_n_per_s
+    F0, d0 = runs[points[cases[0].case_id]].machine_path()
+    if not depends_on_time(F0, d0, post, post_process(F0, d0, post, force_rate_n_per_s=rate), rate):
+        return
+    solve_spec = dataclasses.replace(spec, effects=solve)
+    raw: dict[DesignPoint, tuple[Any, Any]] = {}
+    for c in cases:
+        p = points[c.case_id]
+        if p not in raw:
+            raw[p] = service.run_point(solve_spec, p).machine_path()
+        F, d = raw[p]
+        loop = c.loop
+        if loop is None or loop.time_s is None:  # not timed: the protocol clock's loop stays
+            continue
+        t = record_time(F, loop.force_n, loop.time_s, c.case_id)
+        source = f"model: {describe_point(spec, p)} at {c.case_id}'s clock"
+        d_rec = post_process(F, d, post, time_s=t)
+        out[c.case_id] = ModelResult(Loop(F, d_rec, t, source), out[c.case_id].metrics)
 
 
 def _write_model_loops(
