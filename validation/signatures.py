@@ -23,10 +23,14 @@ nuisance terms fitted with them (``SIGNATURES``):
   asymmetry of the loop between tension and compression;
 * ``drift`` — ``r = o + v·p`` with p the record's time (or, without ``time_s``, its
   sample index) as a fraction of the last loop: v in mm per loop (creep, thermal drift);
-* ``rate`` — loop width growing with the loading rate: ``r = w·β + τ·(−dF/dt)`` with β = +1
-  on the descending and −1 on the ascending branch (a constant width change, which the
-  friction level already covers) and τ in mm·s/N (a viscous element lags by τ·dF/dt);
-  not testable without ``time_s`` or when |dF/dt| varies by less than ``RATE_SPREAD``.
+* ``rate`` — a loop that depends on the loading rate, in the better of two forms (its
+  p-value multiplied by 2): a viscous element in parallel, ``r = w·β + τ·(−dF/dt)`` (the
+  width grows with the rate; τ in mm·s/N), or one in series that creeps,
+  ``r = w·β + φ·β(F_max² − F²)/(2|dF/dt|)`` (the displacement it gathers since the branch's
+  reversal, ∫F dt on a ramp: the width falls as the rate rises; φ in mm/(N·s)); β = +1 on
+  the descending and −1 on the ascending branch (a constant width change, which the
+  friction level already covers). Not testable without ``time_s`` or when |dF/dt| varies by
+  less than ``RATE_SPREAD``.
 
 **Loss residuals** (``LossResidual``): per design point, ``y = ln(η_measured/η_model)``
 with σ from the loop-area σ; ``loss`` — an amplitude-dependent loss: ``y = a_g + s·ln Fg``
@@ -58,6 +62,15 @@ FloatArray = npt.NDArray[np.float64]
 RATE_SPREAD = 0.1
 """Least relative spread (std/mean) of |dF/dt| over the loop points for a rate test."""
 
+RATE_FORMS = (
+    "in parallel: width ∝ dF/dt",
+    "in series (creep): width ∝ ∫F dt, falling with the rate",
+)
+"""The two viscous forms the rate signature tries."""
+
+RATE_UNITS = ("mm·s/N", "mm/(N·s)")
+"""The unit of the rate signature's size in each form: τ, or the fluidity φ."""
+
 STIFFENING_POWERS = (1.0, 2.0, 3.0)
 """Powers k tried for the stiffening signature F|F|^k."""
 
@@ -79,7 +92,7 @@ SIGNATURES = {
         "a time-aware post effect δ += v·t",
     ),
     "rate": (
-        "loop width growing with dF/dt (viscous)",
+        "loop width changing with the loading rate (viscous, in parallel or in series)",
         "mm·s/N",
         "a time-aware post effect δ −= τ·dF/dt (as studies/examples/effects/damper.py)",
     ),
@@ -175,6 +188,13 @@ class Signature:
             return "fits"
         return "fits partly" if self.significant else "does not fit"
 
+    @property
+    def unit(self) -> str:
+        """The unit of ``size``: the rate row's depends on the form that fitted best."""
+        if self.kind == "rate" and self.note in RATE_FORMS:
+            return RATE_UNITS[RATE_FORMS.index(self.note)]
+        return SIGNATURES[self.kind][1]
+
     def to_dict(self) -> dict[str, Any]:
         """Return a JSON-ready dict."""
         return {
@@ -182,7 +202,7 @@ class Signature:
             "what": SIGNATURES[self.kind][0],
             "size": self.size if self.testable else None,
             "size_sigma": self.size_sigma if self.testable else None,
-            "unit": SIGNATURES[self.kind][1],
+            "unit": self.unit,
             "p_value": self.p_value if self.testable else None,
             "significant": self.significant,
             "explained": self.explained if self.testable else None,
@@ -245,7 +265,7 @@ class SignatureTable:
             f"over {self.n_tested} tested:"
         ]
         for r in self.rows:
-            unit = SIGNATURES[r.kind][1]
+            unit = r.unit
             if not r.testable:
                 lines.append(f"  {r.kind:<11} {r.word}")
                 continue
@@ -365,7 +385,12 @@ def _loop_designs(loops: Sequence[LoopResidual]) -> dict[str, Any]:
         if not np.all(np.isfinite(rate)) or np.std(a) < RATE_SPREAD * np.mean(a):
             out["rate"] = f"one loading rate (|dF/dt| varies by < {RATE_SPREAD:.0%})"
         else:
-            out["rate"] = (beta[:, None], [-rate[:, None]], "")
+            # the record's own peak force (each record's grid spans its ±Fg)
+            fmax = np.concatenate(
+                [np.full(len(lr.force_n), np.max(np.abs(lr.force_n))) for lr in loops]
+            )
+            creep = beta * (fmax**2 - F**2) / (2.0 * a)  # ∫F dt since the branch's reversal
+            out["rate"] = (beta[:, None], [-rate[:, None], creep[:, None]], "rate")
     return out
 
 
@@ -406,7 +431,7 @@ def loop_signatures(
         j, (size, sigma, p, explained, within, full) = max(finite, key=lambda t: t[1][3])
         if len(options) > 1:
             p = min(1.0, p * len(options))
-            note = f"k = {STIFFENING_POWERS[j]:g}"
+            note = RATE_FORMS[j] if note == "rate" else f"k = {STIFFENING_POWERS[j]:g}"
         raw[kind] = (size, sigma, p, explained, within, full, note, test)
     level = alpha / max(m, 1)
     rows = []

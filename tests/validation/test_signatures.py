@@ -233,3 +233,48 @@ def test_the_report_shows_the_table_of_a_diagnosis(tmp_path: Path) -> None:
     (tmp_path / "report.json").write_text(json.dumps({"diagnose_3x3": diag}))
     body = paper_validation_report(tmp_path, tmp_path)
     assert "What kind" not in next(str(s.body) for s in body.sections if s.anchor == "diagnose_3x3")
+
+
+def _viscous_set(seed: int, tau: float = 0.0, phi: float = 0.0) -> list[LoopResidual]:
+    """Loops under F = a cos ωt at two frequencies per amplitude, with a dashpot in parallel
+    (width ∝ dF/dt: r = −τ dF/dt) or in series (a creep h = φ∫F dt = φ a sin(ωt)/ω), each
+    from its own closed form. At one frequency the two are proportional (both ∝ a), so only
+    rates that differ at one amplitude tell them apart."""
+    rng = np.random.default_rng(seed)
+    loops = []
+    for a in AMPS:
+        for omega in (0.05, 0.2):
+            half = np.linspace(0.02 * a, 0.98 * a, 20)
+            grid = np.concatenate([-half[::-1], half])
+            F = np.concatenate([grid[::-1], grid])
+            branch = np.repeat([1.0, -1.0], grid.size)
+            phase = np.arccos(F / a)
+            phase = np.where(branch > 0, phase, 2 * math.pi - phase)
+            rate = -a * omega * np.sin(phase)
+            y = -tau * rate + phi * a * np.sin(phase) / omega + rng.normal(0.0, SIGMA, F.size)
+            sig = np.full(F.size, SIGMA)
+            loops.append(
+                LoopResidual(f"c{a:g}w{omega:g}", F, branch, y, sig, phase / (2 * math.pi), rate)
+            )
+    return loops
+
+
+def test_a_creep_in_series_fits_the_rate_row_in_its_series_form() -> None:
+    """The rate row's series column, β(F_max² − F²)/(2|dF/dt|), is ∫F dt on a constant-rate
+    ramp; on a sine it is half of it, so the size reads 2φ."""
+    phi = 2e-6  # mm/(N·s)
+    for seed in (21, 22, 23):
+        table = loop_signatures(_viscous_set(seed, phi=phi), None, 0.01)
+        rate = {r.kind: r for r in table.rows}["rate"]
+        assert rate.fits, table.text()
+        assert rate.unit == "mm/(N·s)", table.text()
+        assert rate.size == pytest.approx(2 * phi, abs=4 * rate.size_sigma), table.text()
+
+
+def test_a_width_growing_with_the_rate_keeps_the_parallel_form() -> None:
+    for seed in (31, 32):
+        table = loop_signatures(_viscous_set(seed, tau=2e-3), None, 0.01)
+        rate = {r.kind: r for r in table.rows}["rate"]
+        assert rate.fits, table.text()
+        assert rate.unit == "mm·s/N", table.text()
+        assert rate.size == pytest.approx(2e-3, abs=4 * rate.size_sigma), table.text()

@@ -65,6 +65,9 @@ def test_a_rate_dependent_user_effect_is_found_written_calibrated_and_compared(
     assert diag["verdict"] == "unexplained", diag["message"]
     rows = {r["kind"]: r for r in diag["signatures"]["rows"]}
     assert rows["rate"]["significant"], rows["rate"]
+    assert rows["rate"]["fits"], rows["rate"]  # a creep in series: the residual within the noise
+    assert rows["rate"]["unit"] == "mm/(N·s)", rows["rate"]  # the series form, a fluidity
+    assert rows["rate"]["size"] == pytest.approx(PHI, rel=0.3)  # a lead, near the truth
     loop_rows = [r for r in rows.values() if r["significant"] and r["kind"] != "loss"]
     assert max(loop_rows, key=lambda r: r["explained"])["kind"] == "rate"
     assert not rows["step"]["significant"]
