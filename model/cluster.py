@@ -83,6 +83,25 @@ def run_job(spec: ModelSpec, point: DesignPoint) -> CycleResult:
     return dataclasses.replace(result, configs={})
 
 
+def run_job_summary(spec: ModelSpec, point: DesignPoint) -> tuple[CycleResult, dict[str, Any]]:
+    """Run one point on a worker and summarise it there (``ModelService.summary``).
+
+    The kind's summary needs the prepared geometry, which stays on the worker.
+
+    Returns:
+        The cycle without its condensed configurations, and the kind's summary of it.
+    """
+    from model.service import ModelService
+
+    with _WORKER_LOCK:
+        service = _WORKER_SERVICE.setdefault(
+            "service", ModelService(max_geometries=WORKER_GEOMETRIES)
+        )
+        result = service.run_point(spec, point)
+        summary = service.summary(spec, point, result)
+    return dataclasses.replace(result, configs={}), summary
+
+
 class ClusterRunner:
     """A Dask client for model jobs; use as a context manager (it closes its cluster).
 
@@ -146,14 +165,17 @@ class ClusterRunner:
     def run(
         self,
         jobs: Sequence[tuple[ModelSpec, DesignPoint]],
-        handle: Callable[[int, CycleResult | None, BaseException | None], None],
+        handle: Callable[[int, Any, BaseException | None], None],
+        task: Callable[[ModelSpec, DesignPoint], Any] = run_job,
     ) -> None:
         """Run jobs as Dask tasks, all jobs of one geometry on one worker.
 
         Args:
             jobs: (spec, point) pairs, each a distinct result.
-            handle: Called in this process with (job index, result, None) or
-                (job index, None, the error the worker raised), in completion order.
+            handle: Called in this process with (job index, what the task returned, None)
+                or (job index, None, the error the worker raised), in completion order.
+            task: What a worker runs per job (``run_job``: the cycle; ``run_job_summary``:
+                the cycle and the kind's summary).
         """
         from dask.distributed import as_completed
 
@@ -167,7 +189,7 @@ class ClusterRunner:
         home = {g: workers[i % len(workers)] for i, g in enumerate(dict.fromkeys(geometry))}
         futures = {
             client.submit(
-                run_job, spec, p, pure=False, workers=[home[g]], allow_other_workers=False
+                task, spec, p, pure=False, workers=[home[g]], allow_other_workers=False
             ): i
             for i, ((spec, p), g) in enumerate(zip(jobs, geometry, strict=True))
         }

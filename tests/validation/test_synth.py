@@ -209,14 +209,14 @@ def test_a_failing_synth_leaves_no_partial_set(tmp_path, monkeypatch):
 
     calls = []
 
-    def fail_second(service, data_spec, case, adapted):
-        calls.append(case)
+    def fail_second(path, m):  # the first case's loop file is already written
+        calls.append(path)
         if len(calls) == 2:
             raise synth.ParameterError("refused by the test")
-        return real(service, data_spec, case, adapted)
+        return real(path, m)
 
-    real = synth._data_run
-    monkeypatch.setattr(synth, "_data_run", fail_second)
+    real = synth.write_loop_csv
+    monkeypatch.setattr(synth, "write_loop_csv", fail_second)
     out = tmp_path / "set"
     with pytest.raises(synth.ParameterError, match="refused by the test"):
         synth.synthesize(
