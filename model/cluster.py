@@ -166,7 +166,8 @@ class ClusterRunner:
         self,
         jobs: Sequence[tuple[ModelSpec, DesignPoint]],
         handle: Callable[[int, Any, BaseException | None], None],
-        task: Callable[[ModelSpec, DesignPoint], Any] = run_job,
+        *,
+        summarize: bool = False,
     ) -> None:
         """Run jobs as Dask tasks, all jobs of one geometry on one worker.
 
@@ -174,8 +175,8 @@ class ClusterRunner:
             jobs: (spec, point) pairs, each a distinct result.
             handle: Called in this process with (job index, what the task returned, None)
                 or (job index, None, the error the worker raised), in completion order.
-            task: What a worker runs per job (``run_job``: the cycle; ``run_job_summary``:
-                the cycle and the kind's summary).
+            summarize: What a worker sends back: the cycle (``run_job``), or the cycle
+                and the kind's summary of it (``run_job_summary``).
         """
         from dask.distributed import as_completed
 
@@ -187,6 +188,7 @@ class ClusterRunner:
             raise DataError("the Dask cluster has no workers")
         geometry = [geometry_key(spec, p) for spec, p in jobs]
         home = {g: workers[i % len(workers)] for i, g in enumerate(dict.fromkeys(geometry))}
+        task = run_job_summary if summarize else run_job
         futures = {
             client.submit(
                 task, spec, p, pure=False, workers=[home[g]], allow_other_workers=False

@@ -408,14 +408,13 @@ class ModelService:
         """
         out: list[tuple[CycleResult, dict[str, Any]] | BaseException | None] = [None] * len(jobs)
         if self.runner is not None:
-            from model.cluster import run_job_summary
 
             def arrived(i: int, done: Any, err: BaseException | None) -> None:
                 if err is None:
                     self.n_computed += 1
                 out[i] = done if err is None else err
 
-            self.runner.run(list(jobs), arrived, task=run_job_summary)
+            self.runner.run(list(jobs), arrived, summarize=True)
         else:
             for i, (spec, p) in enumerate(jobs):
                 try:

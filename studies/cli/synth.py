@@ -19,7 +19,7 @@ from pathlib import Path
 
 from cad.errors import ParameterError
 from model.jsonio import dumps
-from studies.cli.args import CLUSTER_OPTIONS, add_cluster_arguments, model_service
+from studies.cluster_options import CLUSTER_OPTIONS, add_cluster_arguments, model_service
 
 FIELD_OPTIONS = {
     "noise_force_n": ("--noise-force",),

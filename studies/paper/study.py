@@ -250,8 +250,8 @@ def run_paper(study: PaperStudy, out: Path) -> dict[str, Any]:
     """Run both sweeps, fit, plot and compare; write ``report.json`` and ``report.md``."""
     from rsm.paper_printed import GENERAL, MODIFIED, TABLE7_POINT
     from studies.paper.checks import (
+        current_threshold,
         repeatability_pairs,
-        threshold_comparison,
         validation_points,
     )
     from studies.sweep import run_sweep
@@ -275,7 +275,7 @@ def run_paper(study: PaperStudy, out: Path) -> dict[str, Any]:
             _hinge_report(name, table, xs, case, out) if table.is_file() else (None, None)
         )
     if any(v is not None for v in surfaces.values()):
-        report["threshold"] = threshold_comparison(surfaces, out)
+        report["threshold"] = current_threshold(surfaces, out)
     report["validation_points"] = validation_points({n: outcomes[n].table for n, _, _ in hinges})
     report["repeatability"] = repeatability_pairs(
         {n: _eta_at(report[n], xs, TABLE7_POINT[n]) for n, xs, _ in hinges}

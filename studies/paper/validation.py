@@ -62,7 +62,7 @@ def measured_point() -> MeasurementSet:
 
 
 def _spec(quick: bool) -> Any:
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec
 
@@ -166,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
     ``--workers N`` / ``--scheduler ADDRESS`` run the cycles on Dask; every cycle is kept
     in ``DIR/results``, so a rerun reads them back.
     """
-    from studies.cli.args import add_cluster_arguments, model_service
+    from studies.cluster_options import add_cluster_arguments, model_service
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, required=True, metavar="DIR")

@@ -153,7 +153,7 @@ def test_settings_refuse_bad_values(field, value, match):
 def test_true_model_passes_compare_on_synthetic_data_with_clearance(tmp_path):
     """No hidden effect, Δr = 0.1 mm: the record and the model start from the same centred
     pin, so δ(+Fg) agrees (it was −95 % off when the record jumped 2Δr at its start)."""
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec
@@ -176,7 +176,7 @@ def test_true_model_passes_compare_on_synthetic_data_with_clearance(tmp_path):
 
 
 def _coarse_spec():
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec
