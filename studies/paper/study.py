@@ -140,7 +140,6 @@ def _hinge_report(
 ) -> tuple[dict[str, Any], Any]:
     """Fit, plot and compare one hinge; return the report and its surface (None if too few points)."""
     from rsm.metrics import fit_metrics
-    from rsm.plots import plot_all
     from rsm.polynomial import fit_response_surface
     from rsm.query import extrema, threshold_region
     from rsm.tables import read_xy
@@ -171,10 +170,16 @@ def _hinge_report(
         return out_h, None
     surface = fit_response_surface(x, eta, degree, x_names=x_names, y_name="eta")
     m = fit_metrics(surface, warn=False)
+
+    def draw() -> dict[str, Path]:
+        from rsm.plots import plot_all  # matplotlib (~0.8 s) only when a figure is drawn
+
+        return plot_all(surface, m, out / "figures", threshold=0.05, prefix=f"{name}_")
+
     figures = current_figures(
         out / "figures" / f".{name}_surface.json",
         {"table": table.read_bytes().decode("utf-8"), "degree": degree, "x_names": x_names},
-        lambda: plot_all(surface, m, out / "figures", threshold=0.05, prefix=f"{name}_"),
+        draw,
     )
     ext = extrema(surface)
     region = threshold_region(surface, 0.05, below=True)
