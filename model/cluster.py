@@ -1,8 +1,9 @@
 """Model runs as Dask tasks: a private ``LocalCluster``, or an existing cluster by its address.
 
 What ``compare``, ``diagnose``, ``calibrate`` and the paper's validation run through
-``model.service.ModelService.run_jobs``: a batch of independent (spec, design point) jobs.
-``ClusterRunner`` sends every job of one geometry (``model.spec.geometry_key``) to one
+``model.service.ModelService.run_jobs``: a batch of independent (spec, design point) jobs
+(``synth``: ``ModelService.run_summarized``, whose workers also send the kind's summary,
+made on the geometry they hold). ``ClusterRunner`` sends every job of one geometry (``model.spec.geometry_key``) to one
 worker, which keeps a ``ModelService`` of its own and so builds, meshes and factorises
 each geometry once for all the μ, effects and amplitudes run on it. A worker computes the
 cycle and sends it back without the condensed operators; the calling process stores it
