@@ -51,7 +51,7 @@ def model_file(
     folder: Path, mesh: str, clearance_mm: float = 0.0, mu: float = MU, increments: int = 20
 ) -> Path:
     """Write the benchmark's MODEL.toml (coarse, default or conforming mesh)."""
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.file import write_model
@@ -155,7 +155,8 @@ def mortar_row(
     folder: Path, clearance_mm: float, timeout_s: float, increments: int = 40
 ) -> dict[str, object]:
     """The whole cycle in both solvers on the conforming mesh, ccx with exact mortar contact."""
-    from cad.general import GeneralHingeParams, make_general_hinge
+    from cad.general import make_general_hinge
+    from cad.general_params import GeneralHingeParams
     from fe.effects.registry import REGISTRY
     from fe.interop.ccx import loop_figures, loop_from_dat, parse_dat, parse_sta
     from fe.interop.deck_settings import DeckSettings

@@ -40,7 +40,7 @@ def profile(level: int, clearance_mm: float) -> tuple[list[dict[str, Any]], dict
     import fe.contact.working as working
     import fe.general.cycle as cycle
     import fe.general.increments as increments
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.service import ModelService

@@ -67,7 +67,7 @@ CAPTURE = 19
 
 
 def _prepare(level: int, condense: bool = True) -> tuple[Any, Any, Any]:
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from fe.general.cycle import configurations
     from mesh.settings import MeshSettings

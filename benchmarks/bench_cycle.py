@@ -28,7 +28,7 @@ from _common import print_table, run_isolated
 
 def case(level: int, clearance: float, threads: int = 1, **mesh: float) -> dict[str, object]:
     """Run the default 400 N cycle at one refinement; ``mesh``: other MeshSettings fields."""
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.service import ModelService

@@ -44,7 +44,7 @@ CHECKS: tuple[tuple[str, dict[str, dict[str, float]], Any, int], ...] = (
 
 
 def _spec() -> Any:
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec

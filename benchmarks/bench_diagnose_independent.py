@@ -34,7 +34,7 @@ FORCE_NOISE_REL, DISP_NOISE_MM = 0.005, 2e-4
 
 
 def _truth_paths() -> dict[tuple[float, float], tuple[np.ndarray, np.ndarray, float]]:
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.service import ModelService
@@ -77,7 +77,7 @@ def _dataset(paths: dict[Any, Any], seed: int, g: float = 0.0, c: float = 0.0) -
 
 
 def main(n_null: int) -> None:
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec

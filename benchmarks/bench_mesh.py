@@ -16,7 +16,8 @@ from _common import print_table, run_isolated
 
 def case(level: int) -> dict[str, object]:
     t0 = time.perf_counter()
-    from cad.general import GeneralHingeParams, make_general_hinge
+    from cad.general import make_general_hinge
+    from cad.general_params import GeneralHingeParams
     from mesh.build import mesh_hinge
     from mesh.settings import MeshSettings
 

@@ -20,10 +20,11 @@ from pathlib import Path
 
 PARTS = {
     "build the parser (imports of every command)": "build_parser",
-    "load the hinge kinds (build123d, OCP)": "kinds/__init__.py:.*(_load)",
+    "load the hinge kinds (no build123d since this branch)": "kinds/__init__.py:.*(_load)",
+    "all imports (importlib, cumulative)": "_bootstrap>:.*\\(_find_and_load\\)",
     "sweeps: plan, trace, table, convergence": "sweep.py:.*(run_sweep)",
     "surface fits and figures": "study.py:.*(_hinge_report)",
-    "threshold map (paper's fits, figure)": "checks.py:.*(threshold_comparison)",
+    "threshold map (read back from its stamp)": "checks.py:.*(current_threshold)",
 }
 
 

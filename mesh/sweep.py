@@ -15,7 +15,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import build123d as bd
 import numpy as np
 import numpy.typing as npt
 
@@ -147,10 +146,12 @@ def _import_profile(gmsh: Any, sweep: Sweep, tmp: Path) -> dict[int, int]:
     Returns:
         gmsh surface tag → index of the profile face it came from.
     """
+    from build123d import export_brep  # the faces are build123d's: it is loaded already
+
     inputs = []
     for i, face in enumerate(sweep.profile):
         path = tmp / f"face_{i}.brep"
-        bd.export_brep(face, str(path))
+        export_brep(face, str(path))
         inputs.append(gmsh.model.occ.importShapes(str(path)))
     flat = [dt for dts in inputs for dt in dts]
     if len(flat) > 1:  # make touching faces share their edges (a conforming mesh)

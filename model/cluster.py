@@ -1,8 +1,9 @@
 """Model runs as Dask tasks: a private ``LocalCluster``, or an existing cluster by its address.
 
 What ``compare``, ``diagnose``, ``calibrate`` and the paper's validation run through
-``model.service.ModelService.run_jobs``: a batch of independent (spec, design point) jobs.
-``ClusterRunner`` sends every job of one geometry (``model.spec.geometry_key``) to one
+``model.service.ModelService.run_jobs``: a batch of independent (spec, design point) jobs
+(``synth``: ``ModelService.run_summarized``, whose workers also send the kind's summary,
+made on the geometry they hold). ``ClusterRunner`` sends every job of one geometry (``model.spec.geometry_key``) to one
 worker, which keeps a ``ModelService`` of its own and so builds, meshes and factorises
 each geometry once for all the μ, effects and amplitudes run on it. A worker computes the
 cycle and sends it back without the condensed operators; the calling process stores it
@@ -83,6 +84,25 @@ def run_job(spec: ModelSpec, point: DesignPoint) -> CycleResult:
     return dataclasses.replace(result, configs={})
 
 
+def run_job_summary(spec: ModelSpec, point: DesignPoint) -> tuple[CycleResult, dict[str, Any]]:
+    """Run one point on a worker and summarise it there (``ModelService.summary``).
+
+    The kind's summary needs the prepared geometry, which stays on the worker.
+
+    Returns:
+        The cycle without its condensed configurations, and the kind's summary of it.
+    """
+    from model.service import ModelService
+
+    with _WORKER_LOCK:
+        service = _WORKER_SERVICE.setdefault(
+            "service", ModelService(max_geometries=WORKER_GEOMETRIES)
+        )
+        result = service.run_point(spec, point)
+        summary = service.summary(spec, point, result)
+    return dataclasses.replace(result, configs={}), summary
+
+
 class ClusterRunner:
     """A Dask client for model jobs; use as a context manager (it closes its cluster).
 
@@ -146,14 +166,18 @@ class ClusterRunner:
     def run(
         self,
         jobs: Sequence[tuple[ModelSpec, DesignPoint]],
-        handle: Callable[[int, CycleResult | None, BaseException | None], None],
+        handle: Callable[[int, Any, BaseException | None], None],
+        *,
+        summarize: bool = False,
     ) -> None:
         """Run jobs as Dask tasks, all jobs of one geometry on one worker.
 
         Args:
             jobs: (spec, point) pairs, each a distinct result.
-            handle: Called in this process with (job index, result, None) or
-                (job index, None, the error the worker raised), in completion order.
+            handle: Called in this process with (job index, what the task returned, None)
+                or (job index, None, the error the worker raised), in completion order.
+            summarize: What a worker sends back: the cycle (``run_job``), or the cycle
+                and the kind's summary of it (``run_job_summary``).
         """
         from dask.distributed import as_completed
 
@@ -165,9 +189,10 @@ class ClusterRunner:
             raise DataError("the Dask cluster has no workers")
         geometry = [geometry_key(spec, p) for spec, p in jobs]
         home = {g: workers[i % len(workers)] for i, g in enumerate(dict.fromkeys(geometry))}
+        task = run_job_summary if summarize else run_job
         futures = {
             client.submit(
-                run_job, spec, p, pure=False, workers=[home[g]], allow_other_workers=False
+                task, spec, p, pure=False, workers=[home[g]], allow_other_workers=False
             ): i
             for i, ((spec, p), g) in enumerate(zip(jobs, geometry, strict=True))
         }

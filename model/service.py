@@ -387,6 +387,44 @@ class ModelService:
         done = [out[first.get(keys[i], i)] if out[i] is None else out[i] for i in range(len(jobs))]
         return [o if o is not None else RuntimeError("job not run") for o in done]
 
+    def summary(self, spec: ModelSpec, point: DesignPoint, result: CycleResult) -> dict[str, Any]:
+        """The kind's summary of a cycle at ``point`` (``HingeKind.summary``, geometry prepared here)."""
+        spec = resolve_structural(spec)
+        built = self.prepare(spec, point).built
+        return spec.hinge_kind.summary(built, hinge_at(spec, point), result)
+
+    def run_summarized(
+        self, jobs: Sequence[tuple[ModelSpec, DesignPoint]]
+    ) -> list[tuple[CycleResult, dict[str, Any]] | BaseException]:
+        """Each job's cycle and the kind's summary of it, or the error that stopped it.
+
+        Like ``run_jobs`` (on the runner's workers, or here), but the summary needs the
+        prepared geometry, so it is made where the cycle ran. In this process the store is
+        used as by ``run_point``; the workers' cycles are not stored (a stored cycle has
+        no geometry beside it to summarise).
+
+        Args:
+            jobs: (spec, design point) pairs, each run once.
+        """
+        out: list[tuple[CycleResult, dict[str, Any]] | BaseException | None] = [None] * len(jobs)
+        if self.runner is not None:
+
+            def arrived(i: int, done: Any, err: BaseException | None) -> None:
+                if err is None:
+                    self.n_computed += 1
+                out[i] = done if err is None else err
+
+            self.runner.run(list(jobs), arrived, summarize=True)
+        else:
+            for i, (spec, p) in enumerate(jobs):
+                try:
+                    check_spec(spec)
+                    result = self.run_point(spec, p)
+                    out[i] = (result, self.summary(spec, p, result))
+                except FAILURES as err:
+                    out[i] = err
+        return [o if o is not None else RuntimeError("job not run") for o in out]
+
 
 def design_points(
     values: Iterable[Mapping[str, float]], amplitudes_n: Iterable[float]

@@ -43,7 +43,6 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-from scipy import stats
 
 from cad.errors import DataError, ParameterError, check_range
 
@@ -239,6 +238,8 @@ def sigma_interval(sigma_mm: float, n: int, confidence: float) -> Interval:
     Raises:
         ParameterError: For ``confidence`` outside (0, 1) or ``n < 2``.
     """
+    from scipy import stats  # on use: the CLI builds its parser from this module
+
     check_range("confidence", confidence, 0.0, 1.0, lo_open=True, hi_open=True)
     check_range("n", n, 2, math.inf)
     a = 1.0 - confidence
@@ -263,6 +264,8 @@ def _verdict(rejects: bool, detail: str) -> str:
 
 def shapiro_wilk(x: FloatArray, alpha: float = NORMALITY_ALPHA) -> NormalityTest:
     """Shapiro–Wilk test of normality (``scipy.stats.shapiro``) on readings of shape (n,)."""
+    from scipy import stats  # on use: the CLI builds its parser from this module
+
     w, p = stats.shapiro(x)
     rejects = bool(p < alpha)
     detail = f"W = {w:.4f}, p = {p:.3g} {'<' if rejects else '≥'} {alpha:g}"
@@ -283,6 +286,8 @@ def anderson_darling(x: FloatArray) -> NormalityTest:
     Args:
         x: Readings, shape (n,), any unit.
     """
+    from scipy import stats  # on use: the CLI builds its parser from this module
+
     n = x.size
     w = np.sort((x - x.mean()) / x.std(ddof=1))
     i = np.arange(1, n + 1, dtype=np.float64)
@@ -312,6 +317,8 @@ def analyse_readings(
         DataError: Fewer than ``MIN_READINGS`` readings, a non-finite one, or all equal.
         ParameterError: ``length_mm``, ``confidence`` or ``eta`` out of range, or 6σ ≥ L.
     """
+    from scipy import stats  # on use: the CLI builds its parser from this module
+
     x = np.asarray(readings.position_mm, dtype=np.float64).ravel()
     where = f"{readings.source}: hinge {readings.hinge!r}"
     if x.size < MIN_READINGS:
@@ -356,6 +363,8 @@ def correlate(results: tuple[Repeatability, ...]) -> Correlation | None:
     no significance and no slope uncertainty. Three or more: Pearson r, its p-value and
     the least-squares slope with its standard error.
     """
+    from scipy import stats  # on use: the CLI builds its parser from this module
+
     with_eta = [r for r in results if r.eta is not None]
     if len(with_eta) < 2:
         return None

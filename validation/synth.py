@@ -36,7 +36,7 @@ from fe.cycle.result import CycleResult
 from fe.kinds import DEFAULT_KIND, hinge_kind
 from mesh.settings import MeshSettings
 from model.jsonio import dumps
-from model.spec import DesignPoint, ModelSpec, hinge_at, resolve_structural
+from model.spec import DesignPoint, ModelSpec
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -313,6 +313,7 @@ def synthesize(
     cases: Sequence[SynthCase],
     settings: SynthSettings,
     out: Path,
+    service: Any = None,
 ) -> SynthReport:
     """Compute and write a synthetic measurement set.
 
@@ -322,6 +323,8 @@ def synthesize(
         cases: The tests.
         settings: Sampling and noise.
         out: Folder to write (``cases.csv``, ``loops/*.csv``, ``manifest.json``).
+        service: The ``model.service.ModelService`` that runs the cycles (with a Dask
+            runner: on its workers; the sampling and noise stay here); None: in process.
 
     Returns:
         The folder and the manifest.
@@ -346,7 +349,7 @@ def synthesize(
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
     try:
-        report = _synthesize(spec, hidden, cases, settings, tmp)
+        report = _synthesize(spec, hidden, cases, settings, tmp, service)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -356,51 +359,50 @@ def synthesize(
     return SynthReport(out, report.manifest)
 
 
-def _data_run(
-    service: Any, data_spec: Any, case: SynthCase, adapted: dict[float, str]
-) -> tuple[Any, Any, Any]:
-    """Run one case on the data mesh; where its arc grading distorts an element, grade less.
+def _data_runs(
+    service: Any, data_spec: Any, cases: Sequence[SynthCase], adapted: dict[float, str]
+) -> list[tuple[Any, dict[str, Any]]]:
+    """Run every case on the data mesh; where its arc grading distorts an element, grade less.
+
+    The cases go to the service as one batch (``ModelService.run_summarized``: on its Dask
+    workers if it has a runner); those refused for a distorted element go again, once,
+    with the softer grading.
 
     Returns:
-        (cycle result, prepared geometry, the spec used).
+        Per case, in order: (cycle result, the kind's summary of it).
+
+    Raises:
+        MeshQualityError: Both gradings distort an element (names the case).
+        HingelabError: The first case's (in order) other error.
     """
     from cad.errors import MeshQualityError
 
-    point = DesignPoint(case.amplitude_n, dict(case.values))
-    try:
-        return (
-            service.run_point(data_spec, point),
-            service.prepare(data_spec, point),
-            data_spec,
-        )
-    except MeshQualityError as err:
-        model_mesh = data_spec.mesh  # already finer: rebuild from its own rule
-        softer = dataclasses.replace(
-            model_mesh,
-            arc_grading=max(1.0, model_mesh.arc_grading / ARC_GRADING_FACTOR**2),
-        )
-        alt = dataclasses.replace(data_spec, mesh=softer)
-        try:
-            result = service.run_point(alt, point)
-        except MeshQualityError as err2:
+    points = [DesignPoint(c.amplitude_n, dict(c.values)) for c in cases]
+    done = service.run_summarized([(data_spec, p) for p in points])
+    retry = [i for i, d in enumerate(done) if isinstance(d, MeshQualityError)]
+    model_mesh = data_spec.mesh  # already finer: rebuild from its own rule
+    softer = dataclasses.replace(
+        model_mesh, arc_grading=max(1.0, model_mesh.arc_grading / ARC_GRADING_FACTOR**2)
+    )
+    alt = dataclasses.replace(data_spec, mesh=softer)
+    again = service.run_summarized([(alt, points[i]) for i in retry])
+    for i, d in zip(retry, again, strict=True):
+        if isinstance(d, MeshQualityError):
             raise MeshQualityError(
                 f"the synthetic-data mesh (contact size × {CONTACT_SIZE_FACTOR}, arc grading × "
                 f"{ARC_GRADING_FACTOR} or ÷ {ARC_GRADING_FACTOR}) has a distorted element at "
-                f"{case.case_id} ({err2}); give the model a finer mesh "
+                f"{cases[i].case_id} ({d}); give the model a finer mesh "
                 "([mesh] size_mm / contact_size_mm) or less arc_grading"
-            ) from err
-        adapted[case.design_value] = (
-            f"arc grading {model_mesh.arc_grading:g} distorted an element ({err}); "
+            ) from done[i]
+        adapted[cases[i].design_value] = (
+            f"arc grading {model_mesh.arc_grading:g} distorted an element ({done[i]}); "
             f"used {softer.arc_grading:g}"
         )
-        return result, service.prepare(alt, point), alt
-
-
-def _n_contact_points(spec: Any, prepared: Any, result: Any, case: SynthCase) -> int:
-    """Contact points of a prepared geometry, as the kind's cycle summary counts them."""
-    # the parameters the cycle really ran (interface_friction: the fits are contacts)
-    params = hinge_at(resolve_structural(spec), DesignPoint(case.amplitude_n, dict(case.values)))
-    return int(spec.hinge_kind.summary(prepared.built, params, result).get("n_contact_points", 0))
+        done[i] = d
+    for d in done:
+        if isinstance(d, BaseException):
+            raise d
+    return done
 
 
 def _synthesize(
@@ -409,6 +411,7 @@ def _synthesize(
     cases: Sequence[SynthCase],
     settings: SynthSettings,
     out: Path,
+    service: Any,
 ) -> SynthReport:
     from fe.effects.registry import validate_effects
     from model.service import ModelService
@@ -437,11 +440,11 @@ def _synthesize(
     rows = [",".join(["case_id", "hinge", *columns, "amplitude_N", "loop_file", "temperature_C"])]
     records: list[dict[str, Any]] = []
     index = {c.case_id: i for i, c in enumerate(cases)}
-    service = ModelService()
+    service = ModelService() if service is None else service
     ordered = sorted(cases, key=lambda c: c.values)  # one geometry after the other
     adapted: dict[float, str] = {}
-    for case in ordered:
-        result, prepared, used = _data_run(service, data_spec, case, adapted)
+    runs = _data_runs(service, data_spec, ordered, adapted)
+    for case, (result, summary) in zip(ordered, runs, strict=True):
         F, d = machine_path(result)
         m = measure(F, d, settings, index[case.case_id])
         loop_file = f"loops/{case.case_id}.csv"
@@ -455,7 +458,7 @@ def _synthesize(
                 "duration_s": float(m.time_s[-1]),
                 "force_offset_N": m.force_offset_n,
                 "disp_offset_mm": m.disp_offset_mm,
-                "n_contact_points": _n_contact_points(used, prepared, result, case),
+                "n_contact_points": int(summary.get("n_contact_points", 0)),
                 "fe_metrics": {k: float(v) for k, v in metrics.items()},
             }
         )

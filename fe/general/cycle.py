@@ -32,7 +32,7 @@ import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
 from cad.errors import ParameterError, check_range
-from cad.general import MAX_CLEARANCE_MM
+from cad.general_params import MAX_CLEARANCE_MM
 from fe.contact.state import ContactSettings, ContactState
 from fe.cycle.driver import CycleStep, Recorded, Target, drive
 from fe.cycle.protocol import CycleSettings, stage_targets

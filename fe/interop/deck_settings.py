@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 from cad.errors import ParameterError, check_range
-from cad.general import MAX_CLEARANCE_MM
+from cad.general_params import MAX_CLEARANCE_MM
 
 CYCLE = (1.0, -1.0, 1.0)
 """Load factors at the end of the three steps of the cycle: 0 → +Fg → −Fg → +Fg."""

@@ -15,7 +15,6 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from cad.bearing import make_bearing_hinge, without_balls
 from cad.bearing_geometry import MAX_PRELOAD_N, BallModel, BearingHingeParams, Interfaces
 from cad.errors import ParameterError
 from fe.cycle.protocol import CycleSettings
@@ -148,6 +147,8 @@ class BearingHinge:
         self, params: Any, mesh: MeshSettings, out: Path | None, cache_dir: Path | None
     ) -> Built:
         """Mesh the structure without balls and build the Hertz-ball or frictional-fit system."""
+        from cad.bearing import make_bearing_hinge, without_balls  # build123d: only to build
+
         model = without_balls(make_bearing_hinge(params))
         if params.interfaces is Interfaces.CONTACT:
             from fe.bearing.fits import build_fit_system, with_frictional_fits
@@ -223,6 +224,8 @@ class BearingHinge:
 
     def cad(self, params: Any) -> Any:
         """The CAD model with its balls (``cad.bearing.make_bearing_hinge``)."""
+        from cad.bearing import make_bearing_hinge
+
         return make_bearing_hinge(params)
 
 

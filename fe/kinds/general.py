@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from cad.general import MAX_CLEARANCE_MM, GeneralHingeParams, make_general_hinge
+from cad.general_params import MAX_CLEARANCE_MM, GeneralHingeParams
 from fe.cycle.protocol import CycleSettings
 from fe.cycle.result import CycleResult
 from fe.kinds import Built, DesignVariable, Effects, Progress
@@ -67,6 +67,7 @@ class GeneralHinge:
         self, params: Any, mesh: MeshSettings, out: Path | None, cache_dir: Path | None
     ) -> Built:
         """Build, mesh and factorise; ``structure`` holds the exact clearance of the mesh."""
+        from cad.general import make_general_hinge  # build123d loads only to build a solid
         from fe.general.system import build_system
 
         meshed = build_and_mesh(make_general_hinge(params), mesh, out)
@@ -148,6 +149,8 @@ class GeneralHinge:
 
     def cad(self, params: Any) -> Any:
         """The CAD model (``cad.general.make_general_hinge``)."""
+        from cad.general import make_general_hinge
+
         return make_general_hinge(params)
 
 

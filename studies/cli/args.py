@@ -3,10 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
-import os
-from collections.abc import Iterator, Mapping
-from pathlib import Path
+from collections.abc import Mapping
 from typing import Any
 
 from cad.errors import ParameterError
@@ -62,52 +59,6 @@ def add_mesh_arguments(p: argparse.ArgumentParser) -> None:
         metavar="MM",
         help="master contact-surface element size at level 0 [mm] (default 1.2 general, 0.15 bearing; 2 is coarse)",
     )
-
-
-def add_cluster_arguments(p: argparse.ArgumentParser) -> None:
-    """Add where the points run (``sweep``, ``study``, ``compare``, ``diagnose``, ``calibrate``)."""
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=1,
-        metavar="N",
-        help="local Dask worker processes (default 1: in this process)",
-    )
-    p.add_argument(
-        "--scheduler",
-        default=os.environ.get("DASK_SCHEDULER_ADDRESS"),
-        metavar="ADDRESS",
-        help="run on an existing Dask cluster, e.g. tcp://host:8786 "
-        "(default: $DASK_SCHEDULER_ADDRESS, else no cluster)",
-    )
-
-
-CLUSTER_OPTIONS: FieldOptions = {"workers": ("--workers",), "scheduler": ("--scheduler",)}
-"""The fields ``add_cluster_arguments`` sets (``model.cluster.Cluster``)."""
-
-
-@contextlib.contextmanager
-def model_service(args: argparse.Namespace, results: Path | None) -> Iterator[Any]:
-    """The ``ModelService`` a validation command runs its cycles through.
-
-    In this process by default; on a private ``LocalCluster`` with ``--workers N`` (N > 1)
-    or on the cluster at ``--scheduler`` (``model.cluster``), closed on exit.
-
-    Args:
-        args: The options (``--workers``, ``--scheduler``).
-        results: Folder of the result store (a rerun reads back what is there), or None.
-    """
-    from model.cluster import Cluster, ClusterRunner
-    from model.service import ModelService
-    from model.store import ResultStore
-
-    cluster = Cluster(workers=args.workers, scheduler=args.scheduler)
-    store = None if results is None else ResultStore(results)
-    if cluster.in_process:
-        yield ModelService(store=store)
-        return
-    with ClusterRunner(cluster) as runner:
-        yield ModelService(store=store, runner=runner)
 
 
 def settings_from_args(args: argparse.Namespace, *, cycle: bool = True) -> MeshSettings:

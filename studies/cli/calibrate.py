@@ -18,13 +18,8 @@ from typing import TYPE_CHECKING
 
 from cad.errors import ParameterError
 from model.jsonio import dumps
-from studies.cli.args import (
-    CLUSTER_OPTIONS,
-    FIT_OPTIONS,
-    add_cluster_arguments,
-    add_fit_arguments,
-    model_service,
-)
+from studies.cli.args import FIT_OPTIONS, add_fit_arguments
+from studies.cluster_options import CLUSTER_OPTIONS, add_cluster_arguments, model_service
 from studies.outputs import check_writable_dir
 
 if TYPE_CHECKING:

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from model.jsonio import dumps
-from studies.cli.args import CLUSTER_OPTIONS, add_cluster_arguments, model_service
+from studies.cluster_options import CLUSTER_OPTIONS, add_cluster_arguments, model_service
 from studies.outputs import check_writable_dir
 
 if TYPE_CHECKING:

@@ -17,13 +17,8 @@ import argparse
 from pathlib import Path
 
 from model.jsonio import dumps
-from studies.cli.args import (
-    CLUSTER_OPTIONS,
-    FIT_OPTIONS,
-    add_cluster_arguments,
-    add_fit_arguments,
-    model_service,
-)
+from studies.cli.args import FIT_OPTIONS, add_fit_arguments
+from studies.cluster_options import CLUSTER_OPTIONS, add_cluster_arguments, model_service
 
 FIELD_OPTIONS = {**FIT_OPTIONS, **CLUSTER_OPTIONS, "candidates": ("--candidates",)}
 """Field → the options that set it: ``main`` words a refusal in the option the user typed."""

@@ -22,7 +22,7 @@ from typing import Any
 
 from cad.errors import DataError, ParameterError
 from model.jsonio import dumps
-from studies.cli.args import add_cluster_arguments
+from studies.cluster_options import add_cluster_arguments
 from studies.outputs import check_trace_db, check_writable_dir
 
 

@@ -10,12 +10,8 @@ from cad.errors import ParameterError
 from fe.cycle.protocol import DEFAULT_MU
 from fe.kinds import DEFAULT_KIND, HingeKind, hinge_kind, kind_names
 from model.jsonio import dumps
-from studies.cli.args import (
-    GEOMETRY_OPTIONS,
-    add_cluster_arguments,
-    add_mesh_arguments,
-    settings_from_args,
-)
+from studies.cli.args import GEOMETRY_OPTIONS, add_mesh_arguments, settings_from_args
+from studies.cluster_options import add_cluster_arguments
 from studies.options import params_with
 from studies.sweep import SweepSettings, run_sweep
 

@@ -7,7 +7,9 @@ into DIR (``validation.synth``). Without ``--cases`` the design is 3 levels of t
 model's design variable × 3 amplitudes (``validation.synth.default_design``: clearances
 for the general hinge, preloads for the bearing hinge, whose ``--cases`` then reads
 "preload:amp,amp;…" in N). The data come from a finer mesh than
-the model file's (``validation.synth.MESH_RULE``).
+the model file's (``validation.synth.MESH_RULE``). With ``--workers N`` or ``--scheduler
+ADDRESS`` the cycles run on Dask (each geometry on one worker); the sampling and noise are
+drawn here, so the set is the same.
 """
 
 from __future__ import annotations
@@ -17,11 +19,13 @@ from pathlib import Path
 
 from cad.errors import ParameterError
 from model.jsonio import dumps
+from studies.cluster_options import CLUSTER_OPTIONS, add_cluster_arguments, model_service
 
 FIELD_OPTIONS = {
     "noise_force_n": ("--noise-force",),
     "noise_disp_mm": ("--noise-disp",),
     "seed": ("--seed",),
+    **CLUSTER_OPTIONS,
 }
 """Field → the options that set it: ``main`` words a refusal in the option the user typed."""
 
@@ -64,6 +68,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     p.add_argument("--json", action="store_true", help="print the manifest as JSON")
+    add_cluster_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -119,7 +124,8 @@ def run(args: argparse.Namespace) -> int:
         if args.cases is None:
             raise
         raise ParameterError(f"--cases {args.cases!r}: {err}") from err  # err names the column
-    report = synthesize(spec, hidden, cases, settings, args.out)
+    with model_service(args, None) as service:  # the set is replaced whole: no result store
+        report = synthesize(spec, hidden, cases, settings, args.out, service)
     if args.json:
         print(dumps(report.manifest))
     else:

@@ -140,7 +140,6 @@ def _hinge_report(
 ) -> tuple[dict[str, Any], Any]:
     """Fit, plot and compare one hinge; return the report and its surface (None if too few points)."""
     from rsm.metrics import fit_metrics
-    from rsm.plots import plot_all
     from rsm.polynomial import fit_response_surface
     from rsm.query import extrema, threshold_region
     from rsm.tables import read_xy
@@ -171,10 +170,16 @@ def _hinge_report(
         return out_h, None
     surface = fit_response_surface(x, eta, degree, x_names=x_names, y_name="eta")
     m = fit_metrics(surface, warn=False)
+
+    def draw() -> dict[str, Path]:
+        from rsm.plots import plot_all  # matplotlib (~0.8 s) only when a figure is drawn
+
+        return plot_all(surface, m, out / "figures", threshold=0.05, prefix=f"{name}_")
+
     figures = current_figures(
         out / "figures" / f".{name}_surface.json",
         {"table": table.read_bytes().decode("utf-8"), "degree": degree, "x_names": x_names},
-        lambda: plot_all(surface, m, out / "figures", threshold=0.05, prefix=f"{name}_"),
+        draw,
     )
     ext = extrema(surface)
     region = threshold_region(surface, 0.05, below=True)
@@ -250,8 +255,8 @@ def run_paper(study: PaperStudy, out: Path) -> dict[str, Any]:
     """Run both sweeps, fit, plot and compare; write ``report.json`` and ``report.md``."""
     from rsm.paper_printed import GENERAL, MODIFIED, TABLE7_POINT
     from studies.paper.checks import (
+        current_threshold,
         repeatability_pairs,
-        threshold_comparison,
         validation_points,
     )
     from studies.sweep import run_sweep
@@ -275,7 +280,7 @@ def run_paper(study: PaperStudy, out: Path) -> dict[str, Any]:
             _hinge_report(name, table, xs, case, out) if table.is_file() else (None, None)
         )
     if any(v is not None for v in surfaces.values()):
-        report["threshold"] = threshold_comparison(surfaces, out)
+        report["threshold"] = current_threshold(surfaces, out)
     report["validation_points"] = validation_points({n: outcomes[n].table for n, _, _ in hinges})
     report["repeatability"] = repeatability_pairs(
         {n: _eta_at(report[n], xs, TABLE7_POINT[n]) for n, xs, _ in hinges}

@@ -13,9 +13,11 @@ and runs on our default general-hinge model (``ModelSpec`` defaults, μ = 0.2):
    500 N; the interference and other Δr = 0-only candidates are skipped there).
 
 It writes ``DIR/report.json`` and ``DIR/report.md`` (the findings in words, with numbers)
-and the comparison folders. The paper's Table 1 is a *model* (ABAQUS) record, not a
-measurement: "diagnosing" it asks which of our candidate effects would make our model
-behave like theirs. ``--quick`` uses the tests' coarse mesh (minutes instead of ~an hour).
+and the comparison folders; the cycles are kept in ``DIR/results`` (a rerun reads them
+back) and run on Dask with ``--workers N`` or ``--scheduler ADDRESS``. The paper's Table 1
+is a *model* (ABAQUS) record, not a measurement: "diagnosing" it asks which of our
+candidate effects would make our model behave like theirs. ``--quick`` uses the tests'
+coarse mesh (minutes instead of ~an hour).
 """
 
 from __future__ import annotations
@@ -60,7 +62,7 @@ def measured_point() -> MeasurementSet:
 
 
 def _spec(quick: bool) -> Any:
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec
 
@@ -78,8 +80,15 @@ def _subset(data: Any, points: tuple[tuple[float, float], ...]) -> Any:
     return MeasurementSet(keep, data.root)
 
 
-def run(out: Path, quick: bool) -> dict[str, Any]:
-    """Run the comparison and the two diagnoses; write and return the report."""
+def run(out: Path, quick: bool, service: Any = None) -> dict[str, Any]:
+    """Run the comparison and the two diagnoses; write and return the report.
+
+    Args:
+        out: The output folder.
+        quick: The coarse mesh.
+        service: The ``model.service.ModelService`` the cycles run through (its store and
+            Dask runner), or None (in this process, nothing stored).
+    """
     from validation.compare import CompareSettings
     from validation.diagnose import diagnose
     from validation.workflow import compare_and_write
@@ -91,7 +100,9 @@ def run(out: Path, quick: bool) -> dict[str, Any]:
     report: dict[str, Any] = {"model": {"mesh": dataclasses.asdict(spec.mesh), "mu": spec.cycle.mu}}
     settings = CompareSettings()
     for label, data in (("table1", table1), ("test_point", test)):
-        cmp, _ = compare_and_write(spec, data, out / f"compare_{label}", settings, plots=True)
+        cmp, _ = compare_and_write(
+            spec, data, out / f"compare_{label}", settings, plots=True, service=service
+        )
         report[f"compare_{label}"] = {
             "n_pass": cmp.summary["n_pass"],
             "n_cases": cmp.summary["n_cases"],
@@ -112,10 +123,12 @@ def run(out: Path, quick: bool) -> dict[str, Any]:
         if p[0] == 0
     )
     for label, points in (("diagnose_zero_clearance", zero_row), ("diagnose_3x3", SUBSET)):
-        d = diagnose(spec, _subset(table1, points))
+        d = diagnose(spec, _subset(table1, points), service=service)
         report[label] = d.to_dict()
         (out / f"{label}.txt").write_text(d.text() + "\n")
     report["wall_s"] = time.perf_counter() - t0
+    if service is not None:
+        report["n_computed"] = service.n_computed
     (out / "report.json").write_text(dumps(report))
     (out / "report.md").write_text(_markdown(report))
     return report
@@ -148,13 +161,21 @@ def _markdown(r: dict[str, Any]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Command line entry: ``python -m studies.paper.validation --out DIR [--quick]``."""
+    """Command line entry: ``python -m studies.paper.validation --out DIR [--quick]``.
+
+    ``--workers N`` / ``--scheduler ADDRESS`` run the cycles on Dask; every cycle is kept
+    in ``DIR/results``, so a rerun reads them back.
+    """
+    from studies.cluster_options import add_cluster_arguments, model_service
+
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, required=True, metavar="DIR")
     p.add_argument("--quick", action="store_true", help="coarse mesh (the tests' model)")
+    add_cluster_arguments(p)
     typed = list(sys.argv[1:] if argv is None else argv)
     args = p.parse_args(typed)
-    report = run(args.out, args.quick)
+    with model_service(args, args.out / "results") as service:
+        report = run(args.out, args.quick, service)
     from studies.outputs import record_command
 
     record_command(args.out, typed, 0, ("python", "-m", "studies.paper.validation"))

@@ -8,7 +8,8 @@ from dataclasses import replace
 import pytest
 
 from cad.errors import ParameterError
-from cad.general import GeneralHingeParams, make_general_hinge
+from cad.general import make_general_hinge
+from cad.general_params import GeneralHingeParams
 from cad.step import read_step_parts, write_step
 
 

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from cad.errors import MeshQualityError
-from cad.general import GeneralHingeParams, make_general_hinge
+from cad.general import make_general_hinge
+from cad.general_params import GeneralHingeParams
 from fe.kinds import hinge_kind
 from mesh.build import mesh_hinge
 from mesh.hexmesh import HexMesh

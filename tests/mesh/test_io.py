@@ -6,7 +6,8 @@ import meshio
 import numpy as np
 import pytest
 
-from cad.general import GeneralHingeParams, make_general_hinge
+from cad.general import make_general_hinge
+from cad.general_params import GeneralHingeParams
 from mesh.build import mesh_hinge
 from mesh.io import read_msh_summary, write_msh, write_vtu
 

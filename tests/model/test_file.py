@@ -6,7 +6,7 @@ import pytest
 
 from cad.bearing_geometry import Arrangement, BearingHingeParams
 from cad.errors import DataError, ParameterError
-from cad.general import GeneralHingeParams
+from cad.general_params import GeneralHingeParams
 from cad.materials import Material
 from fe.cycle.protocol import CycleSettings
 from mesh.settings import MeshSettings

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cad.errors import ParameterError
-from cad.general import GeneralHingeParams
+from cad.general_params import GeneralHingeParams
 from fe.cycle.protocol import CycleSettings
 from fe.kinds import hinge_kind
 from mesh.settings import MeshSettings

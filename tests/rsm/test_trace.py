@@ -142,7 +142,8 @@ def test_a_rerun_rewriting_an_unchanged_step_is_not_changed_a_new_geometry_is(tm
     """
     import os
 
-    from cad.general import GeneralHingeParams, make_general_hinge
+    from cad.general import make_general_hinge
+    from cad.general_params import GeneralHingeParams
     from cad.step import write_step
 
     step = tmp_path / "geometry" / "c0.000" / "hinge.step"

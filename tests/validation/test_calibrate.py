@@ -54,7 +54,7 @@ def test_ledger_appends_rounds_and_plots(tmp_path):
 
 
 def test_calibrate_refuses_unknown_or_present_effects():
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from model.spec import ModelSpec
     from validation.measurements import MeasurementSet
 
@@ -71,7 +71,7 @@ def test_calibrate_refuses_unknown_or_present_effects():
 def test_evaluator_set_mu_keeps_its_increments_and_takes_the_new_mu():
     import dataclasses
 
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from model.spec import ModelSpec
     from validation.evaluate import ModelEvaluator
 
@@ -87,7 +87,7 @@ def test_ledger_records_every_parameter_of_the_model(tmp_path):
     """The ledger's model column is what the model file holds: re-tuned values included."""
     import dataclasses
 
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from model.file import read_model, write_model
     from model.spec import ModelSpec
     from validation.calibrate import model_parameters

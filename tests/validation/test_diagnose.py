@@ -169,7 +169,7 @@ FAST = DiagnoseSettings(
 
 @pytest.fixture(scope="module")
 def spec():
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec

@@ -174,7 +174,7 @@ def test_a_law_needs_its_condition_and_refuses_a_case_value(synthetic: Path) -> 
 
 
 def test_a_meshed_kind_is_refused_on_displacement_data(synthetic: Path, tmp_path: Path) -> None:
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from model.spec import ModelSpec
     from validation.stroke_fit import displacement_runner
 

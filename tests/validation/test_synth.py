@@ -153,7 +153,7 @@ def test_settings_refuse_bad_values(field, value, match):
 def test_true_model_passes_compare_on_synthetic_data_with_clearance(tmp_path):
     """No hidden effect, Δr = 0.1 mm: the record and the model start from the same centred
     pin, so δ(+Fg) agrees (it was −95 % off when the record jumped 2Δr at its start)."""
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec
@@ -176,7 +176,7 @@ def test_true_model_passes_compare_on_synthetic_data_with_clearance(tmp_path):
 
 
 def _coarse_spec():
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.spec import ModelSpec
@@ -209,14 +209,14 @@ def test_a_failing_synth_leaves_no_partial_set(tmp_path, monkeypatch):
 
     calls = []
 
-    def fail_second(service, data_spec, case, adapted):
-        calls.append(case)
+    def fail_second(path, m):  # the first case's loop file is already written
+        calls.append(path)
         if len(calls) == 2:
             raise synth.ParameterError("refused by the test")
-        return real(service, data_spec, case, adapted)
+        return real(path, m)
 
-    real = synth._data_run
-    monkeypatch.setattr(synth, "_data_run", fail_second)
+    real = synth.write_loop_csv
+    monkeypatch.setattr(synth, "write_loop_csv", fail_second)
     out = tmp_path / "set"
     with pytest.raises(synth.ParameterError, match="refused by the test"):
         synth.synthesize(

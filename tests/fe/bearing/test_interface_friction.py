@@ -10,7 +10,7 @@ import pytest
 
 from cad.bearing_geometry import BearingHingeParams, Interfaces
 from cad.errors import ParameterError
-from cad.general import GeneralHingeParams
+from cad.general_params import GeneralHingeParams
 from fe.cycle.protocol import CycleSettings
 from fe.effects.interfaces import InterfaceFriction
 from fe.effects.registry import REGISTRY

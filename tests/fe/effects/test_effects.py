@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from cad.errors import ParameterError
-from cad.general import GeneralHingeParams, make_general_hinge
+from cad.general import make_general_hinge
+from cad.general_params import GeneralHingeParams
 from fe.cycle.protocol import CycleSettings
 from fe.effects.base import EffectContext
 from fe.effects.cycle import run_cycle_with_effects

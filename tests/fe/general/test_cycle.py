@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from cad.errors import ConvergenceError, ParameterError
-from cad.general import GeneralHingeParams, make_general_hinge
+from cad.general import make_general_hinge
+from cad.general_params import GeneralHingeParams
 from fe.cycle.protocol import CycleSettings
 from fe.cycle.result import CycleResult
 from fe.general.cycle import grip_force, run_cycle

@@ -11,7 +11,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cad.general import GeneralHingeParams, make_general_hinge
+from cad.general import make_general_hinge
+from cad.general_params import GeneralHingeParams
 from fe.cycle.protocol import CycleSettings
 from fe.effects.cycle import run_cycle_with_effects
 from fe.effects.registry import REGISTRY

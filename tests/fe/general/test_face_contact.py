@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from cad.errors import ParameterError
-from cad.general import GeneralHingeParams, make_general_hinge
+from cad.general import make_general_hinge
+from cad.general_params import GeneralHingeParams
 from fe.assembly import dofs_of
 from fe.contact.state import ContactSettings
 from fe.cycle.protocol import CycleSettings

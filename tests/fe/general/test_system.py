@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from cad.errors import ParameterError
-from cad.general import GeneralHingeParams, make_general_hinge
+from cad.general import make_general_hinge
+from cad.general_params import GeneralHingeParams
 from fe.surfaces.geometry import contact_geometry
 from mesh.build import mesh_hinge
 from mesh.settings import MeshSettings

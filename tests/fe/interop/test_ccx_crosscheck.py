@@ -46,7 +46,7 @@ def ccx():
 
 
 def model_file(tmp_path, clearance_mm, increments_per_stage=20, **mesh):
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.file import write_model

@@ -85,7 +85,8 @@ def grip_faces(length):
 
 @pytest.fixture(scope="module")
 def hinge():
-    from cad.general import GeneralHingeParams, make_general_hinge
+    from cad.general import make_general_hinge
+    from cad.general_params import GeneralHingeParams
     from mesh.build import mesh_hinge
     from mesh.settings import MeshSettings
 
@@ -570,7 +571,8 @@ def test_conforming_mesh_starts_without_overclosure():
     facets are the same chords, so ccx's faceted surfaces touch without overclosure and
     the deck needs no ADJUST (tests/fe/interop/test_ccx_crosscheck.py).
     """
-    from cad.general import GeneralHingeParams, make_general_hinge
+    from cad.general import make_general_hinge
+    from cad.general_params import GeneralHingeParams
     from mesh.build import mesh_hinge
     from mesh.settings import MeshSettings
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cad.general import GeneralHingeParams, make_general_hinge
+from cad.general import make_general_hinge
+from cad.general_params import GeneralHingeParams
 from cad.surfaces import Cylinder
 from fe.surfaces.geometry import closest_point, contact_geometry
 from mesh.build import mesh_hinge

@@ -16,7 +16,7 @@ AMPLITUDES = {"c200": (200.0, 1.0), "c400": (400.0, 1.0), "c300_bad": (300.0, 1.
 
 
 def _model_file(path):
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.file import write_model

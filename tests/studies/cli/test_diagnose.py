@@ -13,7 +13,7 @@ from studies.cli.main import main
 
 @pytest.fixture
 def model_path(tmp_path):
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from model.file import write_model
     from model.spec import ModelSpec
 

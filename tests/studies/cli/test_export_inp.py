@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from cad.general import GeneralHingeParams
+from cad.general_params import GeneralHingeParams
 from fe.cycle.protocol import CycleSettings
 from mesh.settings import MeshSettings
 from model.file import write_model

@@ -160,7 +160,7 @@ def test_missing_trace_is_one_line(tmp_path, capsys):
 
 
 def _model_and_data(tmp_path: Path) -> tuple[Path, Path]:
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.file import write_model

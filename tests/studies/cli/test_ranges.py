@@ -10,7 +10,7 @@ import pytest
 
 from cad.bearing_geometry import MAX_PRELOAD_N, BearingHingeParams
 from cad.errors import ParameterError
-from cad.general import MIN_WALL_MM, GeneralHingeParams
+from cad.general_params import MIN_WALL_MM, GeneralHingeParams
 from fe.kinds.bearing import PRELOAD
 from fe.kinds.general import CLEARANCE
 from studies.cli.main import main

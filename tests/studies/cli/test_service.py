@@ -38,7 +38,7 @@ def test_compare_reads_a_model_file_with_effects(tmp_path, capsys):
     """A MODEL.toml with [effects.*] (as calibrate writes it) runs through compare from files."""
     import dataclasses
 
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.file import write_model

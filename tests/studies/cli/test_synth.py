@@ -29,7 +29,7 @@ def _synth_registered():
 
 @pytest.fixture(scope="module")
 def model_path(tmp_path_factory):
-    from cad.general import GeneralHingeParams
+    from cad.general_params import GeneralHingeParams
     from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
     from model.file import write_model

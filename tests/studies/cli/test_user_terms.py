@@ -19,7 +19,7 @@ import pytest
 
 from cad.bearing_geometry import BearingHingeParams
 from cad.errors import ParameterError, check_range
-from cad.general import GeneralHingeParams
+from cad.general_params import GeneralHingeParams
 from fe.cycle.protocol import CycleSettings
 from fe.interop.deck_settings import DeckSettings
 from mesh.settings import MeshSettings
