@@ -260,12 +260,10 @@ def append_ledger(out: Path, rows: Sequence[LedgerRow]) -> list[dict[str, Any]]:
     path.write_text(dumps(every, indent=1) + "\n")
     lines = ["step,params,n_params,chi2,error,heldout_error,aic,bic,model"]
     for r in every:
-        p = ";".join(f"{k}={v:.6g}" for k, v in r["params"].items())
-        m = ";".join(f"{k}={v:.6g}" for k, v in r.get("model", {}).items())
-        lines.append(
-            f"{r['step']},{p},{r['n_params']},{r['chi2']:.6g},{r['error']:.6g},"
-            f"{r['heldout_error']:.6g},{r['aic']:.6g},{r['bic']:.6g},{m}"
-        )
+        p = ";".join(f"{k}={_g(v)}" for k, v in r["params"].items())
+        m = ";".join(f"{k}={_g(v)}" for k, v in r.get("model", {}).items())
+        nums = ",".join(_g(r[k]) for k in ("chi2", "error", "heldout_error", "aic", "bic"))
+        lines.append(f"{r['step']},{p},{r['n_params']},{nums},{m}")
     (out / "ledger.csv").write_text("\n".join(lines) + "\n")
     return every
 
@@ -277,8 +275,15 @@ def plot_ledger(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     fig = Figure(figsize=(6, 4))
     ax = fig.subplots()
     x = range(len(rows))
-    ax.semilogy(x, [r["error"] for r in rows], "o-", label="error (fitted cases)")
-    ax.semilogy(x, [r["heldout_error"] for r in rows], "s--", label="held-out error")
+    nan = float("nan")  # null in the strict-JSON ledger: a gap in the line
+    ax.semilogy(
+        x,
+        [nan if r["error"] is None else r["error"] for r in rows],
+        "o-",
+        label="error (fitted cases)",
+    )
+    held = [nan if r["heldout_error"] is None else r["heldout_error"] for r in rows]
+    ax.semilogy(x, held, "s--", label="held-out error")
     ax.axhline(1.0, color="grey", ls=":", label="noise level")
     ax.set_xticks(list(x), [r["step"] for r in rows], rotation=20)
     ax.set_ylabel("RMS feature residual [σ]")
@@ -287,3 +292,8 @@ def plot_ledger(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     return path
+
+
+def _g(value: float | None) -> str:
+    """A ledger number for the CSV: 6 significant digits, empty where JSON has null (NaN)."""
+    return "" if value is None else f"{value:.6g}"

@@ -191,7 +191,7 @@ class Signature:
     @property
     def unit(self) -> str:
         """The unit of ``size``: the rate row's depends on the form that fitted best."""
-        if self.kind == "rate" and self.note in RATE_FORMS:
+        if self.note in RATE_FORMS:  # only the rate row names a form
             return RATE_UNITS[RATE_FORMS.index(self.note)]
         return SIGNATURES[self.kind][1]
 

@@ -121,9 +121,10 @@ def run(args: argparse.Namespace) -> int:
     else:
         for r in every:
             params = ", ".join(f"{k} = {v:.3g}" for k, v in r["params"].items())
+            h = r["heldout_error"]  # null (NaN) in the strict-JSON ledger when not held out
+            held = f"{h:8.2f} σ" if h is not None else "       —"
             print(
-                f"{r['step']:<24} error {r['error']:8.2f} σ  held-out {r['heldout_error']:8.2f} σ  "
-                f"BIC {r['bic']:9.1f}  {params}"
+                f"{r['step']:<24} error {r['error']:8.2f} σ  held-out {held}  BIC {r['bic']:9.1f}  {params}"
             )
         last = every[-1]
         for key in last.get("moved", []):

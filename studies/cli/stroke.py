@@ -125,11 +125,8 @@ def run_calibrate(args: argparse.Namespace, data: Any) -> int:
         print(json.dumps(out, default=float))
         return 0
     for r in every:
-        held = (
-            f"{r['heldout_error']:8.2f} σ"
-            if r["heldout_error"] == r["heldout_error"]
-            else "       —"
-        )
+        h = r["heldout_error"]  # null (NaN) in the strict-JSON ledger when not held out
+        held = f"{h:8.2f} σ" if h is not None and h == h else "       —"
         print(f"{r['step']:44} error {r['error']:8.2f} σ  held-out {held}  BIC {r['bic']:9.1f}")
     for k, v in law_lines(laws):
         print(f"  {k} = {v:.6g}")

@@ -23,6 +23,7 @@ from cad.general_params import GeneralHingeParams
 from fe.cycle.protocol import CycleSettings
 from fe.interop.deck_settings import DeckSettings
 from mesh.settings import MeshSettings
+from model.cluster import Cluster
 from rsm.polynomial import monomial_exponents
 from studies.cli.args import in_user_terms
 from studies.cli.main import SUBCOMMAND_MODULES, build_parser, main
@@ -57,6 +58,7 @@ REFUSALS: dict[str, Any] = {
     "candidates": lambda: DiagnoseSettings(candidates=("no_such_effect",)),
     "points": lambda: PaperStudy(points=-1),
     "degree": lambda: monomial_exponents(2, 9),
+    "workers": lambda: Cluster(workers=0),
 }
 """Field → a call that makes the dataclass (or function) that checks it refuse it."""
 
