@@ -18,7 +18,9 @@ machine; the cycle with frictional fits (``--interfaces contact``) measured besi
   recovered from each element's 33 × 33 matrix), its ratio and the largest difference.
 
 Run: .venv/bin/python benchmarks/bench_bearing_cli.py [--repeat N] [--skip-contact]
-[--skip-stress]; the load average before and after is printed.
+[--skip-stress] [--reference CHECKOUT]; the load average before and after is printed.
+``--reference /work/main`` runs the bonded cycle with that checkout's code too (the command
+before a change), in the same way and alternating with this one.
 """
 
 from __future__ import annotations
@@ -43,13 +45,16 @@ SPLIT = ("mesh", "assembly", "ties", "factorisation", "condensation", "contact",
 """The parts of the command's wall time its result.json reports [s]."""
 
 
-def run_cli(interfaces: str) -> dict[str, Any]:
-    """Run ``hingelab cycle --hinge bearing --interfaces …`` in a fresh process; one row."""
+def run_cli(interfaces: str, root: Path = ROOT) -> dict[str, Any]:
+    """Run ``hingelab cycle --hinge bearing --interfaces …`` in a fresh process; one row.
+
+    ``root``: the checkout whose code runs (its folder is the command's working directory).
+    """
     with tempfile.TemporaryDirectory(prefix="bench_bearing_cli_") as out:
         cmd = [sys.executable, "-m", "studies.cli.main", "cycle", "--hinge", "bearing",
                "--interfaces", interfaces, "--out", out, "--json", "--no-progress"]  # fmt: skip
         t0 = time.perf_counter()
-        proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        proc = subprocess.Popen(cmd, cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         stdout = proc.stdout.read() if proc.stdout else b""  # before wait4: no pipe deadlock
         stderr = proc.stderr.read() if proc.stderr else b""
         _, status, usage = os.wait4(proc.pid, 0)
@@ -59,9 +64,12 @@ def run_cli(interfaces: str) -> dict[str, Any]:
             raise RuntimeError(f"{' '.join(cmd)} failed: {stderr.decode()[-2000:]}")
         s = json.loads(stdout)
     t = s["timings_s"]
+    if "fields" not in t:  # a checkout before the command timed its field output
+        t["fields"] = float("nan")
     split = {k: float(t.get(k, 0.0)) for k in SPLIT}
     return {
         "interfaces": interfaces,
+        "code": root.name,
         "n_hex": s["n_hex"],
         "n_dof": s["n_dof"],
         "wall_s": wall,
@@ -125,27 +133,44 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeat", type=int, default=1)
     p.add_argument("--skip-contact", action="store_true", help="only the bonded cycle")
     p.add_argument("--skip-stress", action="store_true", help="no stress-recovery comparison")
+    p.add_argument("--reference", type=Path, default=None, metavar="CHECKOUT",
+                   help="also run the bonded cycle with another checkout's code (e.g. main "
+                   "before a change), alternating with this one")  # fmt: skip
     args = p.parse_args(argv)
     print(f"load average before: {_load()}; {os.cpu_count()} cores", flush=True)
     variants = ["bonded"] + ([] if args.skip_contact else ["contact"])
     rows = []
-    for interfaces in variants:
-        for k in range(args.repeat):
-            rows.append(run_cli(interfaces) | {"run": k})
-            print(f"{interfaces} run {k}: wall {rows[-1]['wall_s']:.1f} s, cpu "
+    runs = [(v, ROOT) for v in variants]
+    if args.reference is not None:
+        runs.insert(0, ("bonded", args.reference.resolve()))
+    for k in range(args.repeat):
+        for interfaces, root in runs:
+            rows.append(run_cli(interfaces, root) | {"run": k})
+            print(f"{interfaces} ({root.name}) run {k}: wall {rows[-1]['wall_s']:.1f} s, cpu "
                   f"{rows[-1]['cpu_s']:.1f} s, load {_load()}", flush=True)  # fmt: skip
     print(f"load average after: {_load()}")
     print("hingelab cycle --hinge bearing (Hertz balls, default mesh, Fg 400 N, F_p 100 N, "
           "20 increments per stage, every 4th increment written)")  # fmt: skip
-    print_table(rows, ["interfaces", "run", "n_hex", "n_dof", "wall_s", "cpu_s", "peak_GB",
+    print_table(rows, ["interfaces", "code", "run", "n_hex", "n_dof", "wall_s", "cpu_s", "peak_GB",
                        *(f"{k}_s" for k in SPLIT), "rest_s"])  # fmt: skip
-    print_table(rows, ["interfaces", "run", "eta", "W_cycle_Nmm", "d+_um", "d-_um",
+    print_table(rows, ["interfaces", "code", "run", "eta", "W_cycle_Nmm", "d+_um", "d-_um",
                        "balance_abs_Nmm", "balance_rel"])  # fmt: skip
     if not args.skip_stress:
         row = stress_reference()
         print("centroid stress of one frame, default bearing mesh: shortcut (new) against the "
               "incompatible-mode recovery (old), this process")  # fmt: skip
         print_table([row], list(row))
+    for i, row in enumerate(rows):  # results against the first run of the same variant
+        first = next(r for r in rows if r["interfaces"] == row["interfaces"])
+        if row is not first:
+            diff = max(
+                abs(row[k] - first[k]) / max(abs(first[k]), 1e-300)
+                for k in ("eta", "W_cycle_Nmm", "d+_um", "d-_um", "balance_abs_Nmm")
+            )
+            print(
+                f"row {i} ({row['interfaces']}, {row['code']}): largest relative difference "
+                f"of η, W_cycle, δ(±Fg), energy balance from row {rows.index(first)}: {diff:.1e}"
+            )
     return 0
 
 
