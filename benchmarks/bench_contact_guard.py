@@ -18,7 +18,9 @@ level       Δr [mm]    cycle/floor
 
 A ratio of wall times depends on the machine's load (the contact phase runs on one thread,
 the floor's factorisation on the MKL threads): ``--repeat N`` runs each case N times and
-judges the best (smallest) ratio; the load average is printed before and after. The script
+judges the best (smallest) ratio; the load average is printed before and after. The Newton
+iterations, which do not depend on the load, are checked too: at most ``ITERATION_GROWTH``
+times the recorded ones (a longer Newton path is the regression a loaded machine would hide). The script
 prints the table and exits with status 1 when a bound is broken (not a timed test: the fast
 suite must not depend on the machine's load).
 
@@ -33,12 +35,21 @@ import os
 import sys
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's code
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import print_table, run_isolated
 from bench_cycle import case
 
 BOUNDS = {(0, 0.0): 3.5, (1, 0.0): 2.7, (0, 0.1): 1.5, (1, 0.1): 1.5}
 """(refinement level, clearance Δr [mm]) → the largest allowed cycle/floor."""
+
+RECORDED_ITERATIONS = {(0, 0.0): 221, (1, 0.0): 233, (0, 0.1): 392, (1, 0.1): 565}
+"""Newton iterations of the recorded cycles (bench_cycle_levels_0-1.txt, 9af8b1b / f9c1225)."""
+
+ITERATION_GROWTH = 1.1
+"""Largest allowed ratio of a case's Newton iterations to the recorded ones. Unlike the
+ratio of wall times it does not depend on the machine's load: a solver whose path grew
+longer fails here even when a loaded machine blurs cycle/floor."""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -61,13 +72,16 @@ def main(argv: list[str] | None = None) -> int:
         runs = [run_isolated(case, level, clearance) for _ in range(args.repeat)]
         best = min(runs, key=lambda r: r["cycle/floor"])
         ratios = " ".join(f"{r['cycle/floor']:.2f}" for r in runs)
+        growth = best["iterations"] / RECORDED_ITERATIONS[level, clearance]
+        ok = best["cycle/floor"] <= bound and growth <= ITERATION_GROWTH
         rows.append(
             best
             | {
                 "clearance_mm": clearance,
                 "runs": ratios,
                 "bound": bound,
-                "ok": "yes" if best["cycle/floor"] <= bound else "NO",
+                "it/recorded": growth,
+                "ok": "yes" if ok else "NO",
             }
         )
         print(f"level {level}, Δr {clearance} mm: cycle/floor {ratios} (bound {bound})", flush=True)
@@ -75,13 +89,15 @@ def main(argv: list[str] | None = None) -> int:
     print_table(
         rows,
         ["level", "clearance_mm", "n_dof", "points", "factor_s", "condense_s", "floor_s",
-         "contact_s", "iterations", "wall_s", "peak_MB", "eta", "runs", "cycle/floor", "bound",
-         "ok"],
+         "contact_s", "iterations", "it/recorded", "wall_s", "peak_MB", "eta", "runs",
+         "cycle/floor", "bound", "ok"],
     )  # fmt: skip
     broken = [r for r in rows if r["ok"] != "yes"]
     for r in broken:
         print(f"BROKEN: level {r['level']}, Δr {r['clearance_mm']} mm: cycle/floor "
-              f"{r['cycle/floor']:.2f} > {r['bound']}", file=sys.stderr)  # fmt: skip
+              f"{r['cycle/floor']:.2f} (bound {r['bound']}), Newton iterations "
+              f"{r['it/recorded']:.2f} x the record (bound {ITERATION_GROWTH})",
+              file=sys.stderr)  # fmt: skip
     return 1 if broken else 0
 
 
