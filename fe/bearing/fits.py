@@ -266,11 +266,15 @@ def build_fit_system(
         raise MeshQualityError("a rigid mode of the pin, ring spin or grip moves a ball patch")
     # condensation: one block of right-hand sides at a time
     rows = sp.vstack([C, Bt]).tocsr()[:, free]
+    rows.sort_indices()
+    # the DOFs the rows touch: only they of each solution enter the product
+    touched = np.unique(rows.indices)
+    rows_t = rows[:, touched]
     n_c = C.shape[0]
     WW = np.zeros((rows.shape[0], rows.shape[0]))
     for start in range(0, rows.shape[0], BLOCK_RHS):
-        block = rows[start : start + BLOCK_RHS].T.toarray()
-        WW[:, start : start + BLOCK_RHS] = rows @ factor.solve(block).reshape(len(free), -1)
+        block = rows[start : start + BLOCK_RHS].toarray().T  # column-major, as PARDISO's
+        WW[:, start : start + BLOCK_RHS] = rows_t @ factor.solve(block, rows=touched)
     WW = 0.5 * (WW + WW.T)
     # A tang node at the corner of bore and lip, facing ring 0's bottom edge (tied to the
     # lip), moves with its master: a zero row of W. It cannot carry load; drop it.

@@ -255,9 +255,11 @@ def build_bearing_system(
         fields[3 * mesh.part_nodes(part) + 2, 2] = -1.0
     balls = ball_lines(params)
     B = patch_rows(mesh, balls)
-    B_free = (B @ T)[:, free]
-    X = factor.solve(B_free.T.toarray())
-    W = np.asarray(B_free @ X)
+    B_free = (B @ T).tocsr()[:, free]
+    B_free.sort_indices()
+    touched = np.unique(B_free.indices)  # only these rows of the solutions enter W
+    X = factor.solve(B_free.toarray().T, rows=touched)  # column-major, as PARDISO's
+    W = np.asarray(B_free[:, touched] @ X)
     W = 0.5 * (W + W.T)
     t["condensation"] = time.perf_counter() - t0
     scale = abs(K.diagonal()).max()

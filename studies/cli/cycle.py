@@ -202,14 +202,18 @@ def _write_files(
     title = describe_point(spec, point)
     written.append(write_loop_png(result, args.out / "loop.png", title=title))
     files["loop_png"] = str(written[-1])
+    t_fields = time.perf_counter()
     if args.frames:
         pvd = kind.write_fields(prepared.built, result, args.out / "fields", args.frames)
         if pvd is not None:
             files["pvd"] = str(pvd)
+    t_fields = time.perf_counter() - t_fields
     summary = _summary(result, meshed, files)
     # the parameters the cycle really ran (interface_friction: the fits are contacts)
     own = kind.summary(prepared.built, hinge_at(resolve_structural(spec), point), result)
     timings = {**summary.pop("timings_s"), **own.pop("timings_s", {}), **result.timings_s}
+    if args.frames:
+        timings["fields"] = t_fields  # the ParaView series (recovery, stress, .vtu files)
     summary |= own | {"timings_s": timings, "wall_s": time.perf_counter() - t0}
     summary |= {"cutbacks": result.n_cutbacks, "warnings": warning_lines(result)}
     written.append(args.out / "result.json")

@@ -204,6 +204,23 @@ def test_factorization_block_and_single_solves_agree(backend):
     np.testing.assert_array_equal(K_ff.data, data)
 
 
+@pytest.mark.parametrize("backend", BACKENDS, ids=BACKEND_IDS)
+def test_factorization_rows_of_a_column_major_block_are_the_full_solve_s(backend):
+    """``solve(B, rows=r)`` is ``solve(B)[r]`` bit for bit, for a column-major block too."""
+    K_ff = _free_block()
+    fac = Factorization(K_ff, backend=backend)
+    B = np.random.default_rng(1).standard_normal((5, K_ff.shape[0]))
+    rows = np.array([7, 0, K_ff.shape[0] - 1, 3])  # any order
+    full = fac.solve(B.T.copy())
+    for block in (B.T, B.T.copy()):  # column-major (no copy made) and row-major
+        part = fac.solve(block, rows=rows)
+        assert part.shape == (4, 5)
+        assert part.flags.c_contiguous
+        np.testing.assert_array_equal(part, full[rows])
+    np.testing.assert_array_equal(fac.solve(B[0], rows=rows), fac.solve(B[0])[rows])
+    assert fac.solve(np.zeros((K_ff.shape[0], 0)), rows=rows).shape == (4, 0)
+
+
 def test_factorization_backends_agree():
     K_ff = _free_block()
     b = np.linspace(-1.0, 1.0, K_ff.shape[0])

@@ -148,6 +148,25 @@ def test_constant_strain_gives_exact_stress_everywhere_on_distorted_element(kind
     )
 
 
+def test_centroid_stress_skips_the_modes_without_changing_it():
+    """The centroid shortcut (no mode recovery) equals the stress with the modes recovered.
+
+    Evaluated together with a Gauss point, the centroid goes through the mode recovery
+    (α = -K_αα⁻¹ K_αu u_e); alone, it skips it. On distorted elements under a random field
+    the modes are excited (they change the Gauss-point stress) but not the centroid's.
+    """
+    coords = _distorted_elements(5, amp=0.3)
+    u_e = np.random.default_rng(7).standard_normal((5, 24)) * 1e-3
+    gauss = gauss_hex(2).points[:1]
+    both = element_stress_at_points(
+        coords, u_e, LAM, MU, ElementType.INCOMPATIBLE, np.vstack([np.zeros((1, 3)), gauss])
+    )
+    alone = element_strain_stress(coords, u_e, LAM, MU, ElementType.INCOMPATIBLE)
+    np.testing.assert_allclose(alone, both[:, 0], rtol=0, atol=1e-12 * np.abs(both).max())
+    without_modes = element_stress_at_points(coords, u_e, LAM, MU, ElementType.FULL, gauss)[:, 0]
+    assert np.abs(both[:, 1] - without_modes).max() > 1e-3 * np.abs(both).max()
+
+
 def _pure_bending(coords, kappa):
     """Exact 3D pure-bending field (σxx = E κ z, all else 0) and its stress at points x."""
     x, y, z = coords[..., 0], coords[..., 1], coords[..., 2]

@@ -96,6 +96,17 @@ def test_condensed_compliance_is_symmetric_positive_definite(system: BearingSyst
     assert 0.05 * hertz < np.median(np.diag(system.W)) < 20 * hertz
 
 
+def test_condensed_compliance_is_the_patch_rows_through_the_whole_solve(
+    system: BearingSystem,
+) -> None:
+    """W from the solutions' rows at the DOFs the patches touch = ``B K⁻¹ Bᵀ`` from whole ones."""
+    B_free = (system.B @ system.ties.T).tocsr()[:, system.free]
+    X = system.factor.solve(B_free.T.toarray())  # every row of every solution
+    W = np.asarray(B_free @ X)
+    W = 0.5 * (W + W.T)
+    np.testing.assert_allclose(system.W, W, rtol=0, atol=1e-12 * np.abs(W).max())
+
+
 @pytest.fixture(scope="module")
 def cycle_100(system: BearingSystem):  # type: ignore[no-untyped-def]
     return run_bearing_cycle(system, CycleSettings(amplitude_n=400.0), 100.0)

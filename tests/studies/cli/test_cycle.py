@@ -47,7 +47,8 @@ def test_cycle_json_files_and_loop_csv(tmp_path, capsys):
         assert key in out, key
     assert out["free_play_mm"] == pytest.approx(0.2)
     assert out["energy_balance_rel_err"] < 0.02
-    assert {"factorisation", "condensation", "contact"} <= set(out["timings_s"])
+    assert {"factorisation", "condensation", "contact", "fields"} <= set(out["timings_s"])
+    assert 0.0 < out["timings_s"]["fields"] < out["wall_s"]
     with open(tmp_path / "loop.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert {"force_N", "displacement_mm"} <= set(rows[0])
