@@ -80,7 +80,7 @@ def run_job(spec: ModelSpec, point: DesignPoint) -> CycleResult:
         service = _WORKER_SERVICE.setdefault(
             "service", ModelService(max_geometries=WORKER_GEOMETRIES)
         )
-        result = service.run_point(spec, point)
+        result: CycleResult = service.run_point(spec, point)
     return dataclasses.replace(result, configs={})
 
 

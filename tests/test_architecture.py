@@ -127,7 +127,9 @@ def _resolves(dotted: str) -> bool:
     return False
 
 
-INSTALL_COMMAND = re.compile(r"""["'](?:apt-get|apt|pip|dpkg)["']\s*,\s*["'](?:install|update|-i)["']""")
+INSTALL_COMMAND = re.compile(
+    r"""["'](?:apt-get|apt|pip|dpkg)["']\s*,\s*["'](?:install|update|-i)["']"""
+)
 """A subprocess argument list that installs packages, e.g. ``["apt-get", "install", ...]``."""
 
 
@@ -136,7 +138,8 @@ def test_no_test_installs_packages() -> None:
     offenders = [
         str(p.relative_to(ROOT))
         for p in (ROOT / "tests").rglob("*.py")
-        if p.name != "test_architecture.py" and INSTALL_COMMAND.search(p.read_text(encoding="utf-8"))
+        if p.name != "test_architecture.py"
+        and INSTALL_COMMAND.search(p.read_text(encoding="utf-8"))
     ]
     assert not offenders, f"tests that install packages: {offenders}"
 

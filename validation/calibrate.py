@@ -265,7 +265,8 @@ def append_ledger(out: Path, rows: Sequence[LedgerRow]) -> list[dict[str, Any]]:
         nums = ",".join(_g(r[k]) for k in ("chi2", "error", "heldout_error", "aic", "bic"))
         lines.append(f"{r['step']},{p},{r['n_params']},{nums},{m}")
     (out / "ledger.csv").write_text("\n".join(lines) + "\n")
-    return every
+    rows_out: list[dict[str, Any]] = every
+    return rows_out
 
 
 def plot_ledger(rows: Sequence[dict[str, Any]], path: Path) -> Path:

@@ -42,6 +42,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import Enum
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -103,7 +104,9 @@ def _cut(F: FloatArray, d: FloatArray, sign: int, band: float) -> tuple[int, int
     return i0, i1, at(i0 - 1, band), at(i1, -band)
 
 
-def _kept_polygon(loop: ProcessedLoop, band: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+def _kept_polygon(
+    loop: ProcessedLoop, band: float
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]]:
     """The last loop with its crossings cut: (F (m,), δ (m,), kept (m,) bool per segment k→k+1).
 
     Segment m−1 is the closing chord from the last point back to the first.
@@ -132,7 +135,7 @@ def _kept_polygon(loop: ProcessedLoop, band: float) -> tuple[FloatArray, FloatAr
 
 
 def _area_and_noise(
-    F: FloatArray, d: FloatArray, kept: FloatArray, s_F: float, s_d: float
+    F: FloatArray, d: FloatArray, kept: npt.NDArray[np.bool_], s_F: float, s_d: float
 ) -> tuple[float, float]:
     """Σ over kept segments (closing chord included) of ½(F_k + F_{k+1})(δ_{k+1} − δ_k), and its σ."""
     nxt = np.roll(np.arange(F.size), -1)
@@ -330,7 +333,11 @@ def judge(
     """
     v, u = float(measured), float(model)
     diff = u - v if math.isfinite(u) and math.isfinite(v) else math.nan
-    base = {"difference": diff, "sigma_abs": sigma_abs, "sigma_noise_abs": sigma_noise_abs}
+    base: dict[str, Any] = {
+        "difference": diff,
+        "sigma_abs": sigma_abs,
+        "sigma_noise_abs": sigma_noise_abs,
+    }
     if not math.isfinite(v) or not math.isfinite(sigma_abs):
         why = f"measured {name} has no value ({v:.3g}, σ {sigma_abs:.3g})"
         return Judgement(Status.NOT_MEASURABLE, False, None, None, reason=why, **base)

@@ -314,7 +314,12 @@ def _wls(y: FloatArray, s: FloatArray, X: FloatArray) -> _Fit:
     beta, _, rank, _ = np.linalg.lstsq(A, b, rcond=None)
     res = b - A @ beta
     cov = np.linalg.pinv(A.T @ A)
-    return _Fit(beta, cov, float(res @ res), n - int(rank))
+    return _Fit(
+        np.asarray(beta, dtype=np.float64),
+        np.asarray(cov, dtype=np.float64),
+        float(res @ res),
+        n - int(rank),
+    )
 
 
 class _Test:
@@ -418,7 +423,7 @@ def loop_signatures(
     plans["loss"] = _loss_plan(loss)
     loss_test = None if loss is None else _Test(loss.log_ratio, loss.sigma)
     m = sum(1 for p in plans.values() if not isinstance(p, str))
-    raw = {}
+    raw: dict[str, Any] = {}
     for kind, plan in plans.items():
         if isinstance(plan, str):
             raw[kind] = None

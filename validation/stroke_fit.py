@@ -32,8 +32,9 @@ from scipy import optimize
 from cad.errors import DataError, HingelabError, ParameterError
 from model.spec import ModelSpec
 from validation.joint_laws import Laws, ParamLaw, condition_power, params_at
-from validation.measurements import Case, Control, MeasurementSet
+from validation.measurements import Case, MeasurementSet
 from validation.rig_cycles import displacement_stages
+from validation.rig_mapping import Control
 from validation.stroke import (
     STROKE_FEATURES,
     StrokeSettings,
@@ -257,8 +258,8 @@ def fit_laws(
     x0 = np.array([laws[p].intercept if k == "intercept" else laws[p].slopes[k] for p, k in coefs])
     span = {}
     for _p, c in coefs:
-        base, power = condition_power(c)
-        top = max((abs(p.case.conditions.get(base, 0.0)) for p in points), default=1.0)
+        cond, power = condition_power(c)
+        top = max((abs(p.case.conditions.get(cond, 0.0)) for p in points), default=1.0)
         span[c] = (top or 1.0) ** power
     base = {p: abs(laws[p].intercept) or DEFAULT_SCALES.get(p, 1.0) for p, _k in coefs}
     scale = np.array([base[p] if k == "intercept" else base[p] / span[k] for p, k in coefs])

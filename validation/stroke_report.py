@@ -59,7 +59,7 @@ def stroke_compare(
     """Judge the model against every case (module docstring); a JSON-ready dict."""
     points = stroke_points(data, settings)
     by_id = data.by_id()
-    rows = []
+    rows: list[dict[str, Any]] = []
     for p in points:
         for cid in p.case_ids:
             case = by_id[cid]
@@ -88,7 +88,7 @@ def stroke_compare(
                     "passed": not failed,
                 }
             )
-    w = [r["W_error"] for r in rows]
+    w = [float(r["W_error"]) for r in rows]
     return {
         "k": settings.k,
         "laws": law_coefficients(laws),

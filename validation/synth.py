@@ -378,7 +378,7 @@ def _data_runs(
     from cad.errors import MeshQualityError
 
     points = [DesignPoint(c.amplitude_n, dict(c.values)) for c in cases]
-    done = service.run_summarized([(data_spec, p) for p in points])
+    done: list[Any] = service.run_summarized([(data_spec, p) for p in points])
     retry = [i for i, d in enumerate(done) if isinstance(d, MeshQualityError)]
     model_mesh = data_spec.mesh  # already finer: rebuild from its own rule
     softer = dataclasses.replace(

@@ -212,5 +212,5 @@ def _force_with_dashpot(
                 s.play_mm,
             )
         )
-    cols = [np.array(c) for c in zip(*rows, strict=True)]
-    return History(*cols, state=s)
+    F, u, kt, e, w, v, g = (np.array(c, dtype=np.float64) for c in zip(*rows, strict=True))
+    return History(F, u, kt, e, w, v, g, state=s)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from cad.errors import ParameterError
 from model.jsonio import dumps
@@ -149,7 +149,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _compare(
     spec: ModelSpec, data: MeasurementSet, args: argparse.Namespace, service: object = None
-) -> dict[str, object]:
+) -> dict[str, Any]:
     """Re-run the comparison with the calibrated model into ``args.out/compare``; its summary."""
     from validation.compare import CompareSettings
     from validation.features import FeatureSettings

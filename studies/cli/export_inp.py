@@ -6,7 +6,7 @@ import argparse
 import dataclasses
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from cad.errors import ParameterError
 from model.jsonio import dumps
@@ -174,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-CONFORMING: dict[str, float] = {"slave_ratio": 1.0, "arc_grading": 1.0}
+CONFORMING: dict[str, Any] = {"slave_ratio": 1.0, "arc_grading": 1.0}
 """The ``MeshSettings`` overrides of ``--mesh conforming``: 16 equal facets around pin and holes
 at the coarse size, every pin node at a hole node's angle (docs/calculix_crosscheck.md)."""
 

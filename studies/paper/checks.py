@@ -119,7 +119,8 @@ def current_threshold(
     tmp = stamp.with_suffix(".tmp")
     tmp.write_text(dumps({"inputs": digest, "result": result}))
     tmp.replace(stamp)
-    return json.loads(dumps(result))  # as a rerun reads it (non-finite values: null)
+    back: dict[str, Any] = json.loads(dumps(result))  # as a rerun reads it (NaN: null)
+    return back
 
 
 def _draw(regions: Mapping[str, tuple[Any, Any]], path: Path) -> None:

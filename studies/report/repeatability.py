@@ -11,7 +11,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from studies.report.parts import Section, cards, fmt, join, link, table, tag
+from studies.report.parts import Html, Section, cards, fmt, join, link, table, tag
 from studies.report.parts import figures as figure_grid
 from studies.report.sections import ReportBody, read_json
 
@@ -44,7 +44,7 @@ def _hinge_rows(hinges: list[Mapping[str, Any]]) -> list[list[object]]:
     return rows
 
 
-def _correlation(doc: Mapping[str, Any]) -> object:
+def _correlation(doc: Mapping[str, Any]) -> Html:
     c = doc.get("correlation")
     if not c:
         return tag("p", f"no η–θ correlation: {doc.get('correlation_reason') or '—'}", cls="note")

@@ -55,7 +55,9 @@ def test_the_kind_is_found_only_through_its_entry_point(jenkins) -> None:  # typ
 def test_an_unknown_kind_names_the_known_ones() -> None:
     from cad.errors import ParameterError
 
-    with pytest.raises(ParameterError, match=r"hinge kind must be one of \['bearing', 'general', 'joint'\]"):
+    with pytest.raises(
+        ParameterError, match=r"hinge kind must be one of \['bearing', 'general', 'joint'\]"
+    ):
         hinge_kind("jenkins_pin_typo")
 
 

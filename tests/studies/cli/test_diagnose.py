@@ -68,7 +68,6 @@ def stubs(monkeypatch):
     no_cases = types.SimpleNamespace(cases=())  # a force-controlled set as far as the CLI asks
     monkeypatch.setattr(validation.measurements, "read_measurement_set", lambda path: no_cases)
 
-
     import validation.workflow
 
     compared = []

@@ -70,7 +70,9 @@ def test_default_deck_is_mortar_on_the_conforming_mesh(tmp_path, capsys, model_f
     assert "ADJUST=" not in text
     # the model's own (graded) mesh is another mesh: more elements around the load line
     model = tmp_path / "model.inp"
-    assert main(["export-inp", str(model_file), "--out", str(model), "--json", "--mesh", "model"]) == 0
+    assert (
+        main(["export-inp", str(model_file), "--out", str(model), "--json", "--mesh", "model"]) == 0
+    )
     own = json.loads(capsys.readouterr().out)
     assert own["n_nodes"] != summary["n_nodes"]
     assert "--mesh conforming" in own["caution"]
