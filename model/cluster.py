@@ -68,6 +68,42 @@ def quiet_dask() -> None:
             logging.getLogger(name).setLevel(logging.ERROR)
 
 
+def connect(address: str) -> Any:
+    """A ``dask.distributed.Client`` of the scheduler at ``address`` (Dask's logs quietened).
+
+    Raises:
+        DataError: If the scheduler cannot be reached (naming ``--scheduler`` and the address).
+    """
+    from dask.distributed import Client
+
+    quiet_dask()
+    try:
+        return Client(address, timeout="10s")
+    except (OSError, TimeoutError) as err:
+        raise DataError(
+            f"--scheduler {address}: cannot connect to a Dask scheduler ({err})"
+        ) from err
+
+
+def local_cluster(workers: int) -> Any:
+    """A private ``LocalCluster`` of ``workers`` one-thread processes (Dask's logs quietened).
+
+    Each worker gets its share of the cores for its large LUs (``HINGELAB_LU_THREADS``), so
+    two workers never take a second thread each on two cores.
+    """
+    from dask.distributed import LocalCluster
+
+    quiet_dask()
+    return LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        silence_logs=logging.ERROR,
+        env={"HINGELAB_LU_THREADS": str(max(1, (os.cpu_count() or 1) // workers))},
+    )
+
+
 def run_job(spec: ModelSpec, point: DesignPoint) -> CycleResult:
     """Run one point on a worker (its geometry reused across the worker's jobs).
 
@@ -129,28 +165,12 @@ class ClusterRunner:
         """
         if self._client is not None:
             return self._client
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client
 
-        quiet_dask()
         if self.cluster.scheduler is not None:
-            try:
-                self._client = Client(self.cluster.scheduler, timeout="10s")
-            except (OSError, TimeoutError) as err:
-                raise DataError(
-                    f"--scheduler {self.cluster.scheduler}: cannot connect to a Dask scheduler "
-                    f"({err})"
-                ) from err
+            self._client = connect(self.cluster.scheduler)
             return self._client
-        n = self.cluster.workers
-        self._local = LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,
-            # one worker per core: a worker's large LUs must not take a second thread
-            env={"HINGELAB_LU_THREADS": str(max(1, (os.cpu_count() or 1) // n))},
-        )
+        self._local = local_cluster(self.cluster.workers)
         self._client = Client(self._local)
         return self._client
 

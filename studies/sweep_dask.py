@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import os
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -37,13 +36,6 @@ Store = Callable[[dict[str, Any]], None]
 
 _WORKER_SERVICES: dict[str, Any] = {}
 _WORKER_LOCK = threading.Lock()  # a worker with several threads prepares each geometry once
-
-
-def _quiet_dask() -> None:
-    """Silence Dask's INFO/WARNING chatter unless the user asked for logs (-v)."""
-    if not logging.getLogger().isEnabledFor(logging.INFO):
-        for name in ("distributed", "distributed.client", "distributed.worker", "tornado"):
-            logging.getLogger(name).setLevel(logging.ERROR)
 
 
 def run_point_task(settings: SweepSettings, point: DesignPoint, out: Path) -> dict[str, Any]:
@@ -125,25 +117,14 @@ def run_on_local_cluster(
     points: list[DesignPoint], settings: SweepSettings, out: Path, store: Store
 ) -> None:
     """Run points on a private LocalCluster of ``settings.workers`` processes."""
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import Client
 
-    _quiet_dask()
+    from model.cluster import local_cluster
     from model.spec import geometry_key
 
     spec = settings.spec()
     n = min(settings.workers, len({geometry_key(spec, p) for p in points}))
-    with (
-        LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,
-            # one worker per core: a worker's large LUs must not take a second thread
-            env={"HINGELAB_LU_THREADS": str(max(1, (os.cpu_count() or 1) // n))},
-        ) as cluster,
-        Client(cluster) as client,
-    ):
+    with local_cluster(n) as cluster, Client(cluster) as client:
         futures = _submit_pinned(client, spec, points, run_point_task, lambda p: (settings, p, out))
         _drain(client, futures, store)
 
@@ -156,20 +137,14 @@ def run_on_scheduler(
     Raises:
         DataError: If the scheduler cannot be reached (naming the address and --scheduler).
     """
-    from dask.distributed import Client
-
+    from model.cluster import connect
     from model.store import ResultStore
     from studies.sweep_points import point_record
 
-    _quiet_dask()
     spec = settings.spec()
     results = ResultStore(out / "results")
-    try:
-        client = Client(settings.scheduler, timeout="10s")
-    except (OSError, TimeoutError) as err:
-        raise DataError(
-            f"--scheduler {settings.scheduler}: cannot connect to a Dask scheduler ({err})"
-        ) from err
+    assert settings.scheduler is not None  # the caller chose this path for it
+    client = connect(settings.scheduler)
 
     def handle(value: dict[str, Any]) -> None:
         run = value["run"]
