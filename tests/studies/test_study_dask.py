@@ -5,15 +5,14 @@ from __future__ import annotations
 import csv
 import json
 import os
-import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
 from studies.cli.main import main
+from tests.dask_cluster import external_cluster
 
 STUDY = """
 [study]
@@ -33,22 +32,9 @@ degree = 1
 """
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def _rows(path: Path) -> list[dict[str, str]]:
     with path.open(newline="") as fh:
         return list(csv.DictReader(fh))
-
-
-def _wait_for_workers(address: str, n: int, timeout_s: float = 60.0) -> None:
-    from distributed import Client
-
-    with Client(address, timeout="30s") as client:
-        client.wait_for_workers(n, timeout=timeout_s)
 
 
 @pytest.mark.slow
@@ -57,38 +43,7 @@ def test_study_on_an_existing_cluster_equals_the_serial_run(tmp_path, capsys):
 
     study = tmp_path / "study.toml"
     study.write_text(STUDY)
-    port = _free_port()
-    address = f"tcp://127.0.0.1:{port}"
-    dask = str(Path(sys.executable).parent / "dask")
-    logs = (tmp_path / "dask.log").open("w")
-    procs = [
-        subprocess.Popen(
-            [dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-            stdout=logs,
-            stderr=subprocess.STDOUT,
-        )
-    ]
-    try:
-        time.sleep(2.0)
-        for _ in range(2):
-            procs.append(
-                subprocess.Popen(
-                    [
-                        dask,
-                        "worker",
-                        address,
-                        "--nthreads",
-                        "1",
-                        "--host",
-                        "127.0.0.1",
-                        "--no-dashboard",
-                    ],
-                    stdout=logs,
-                    stderr=subprocess.STDOUT,
-                    cwd=tmp_path,  # the workers find the package installed, not through the cwd
-                )
-            )
-        _wait_for_workers(address, 2)
+    with external_cluster(tmp_path) as address:
         assert (
             main(["study", str(study), "--out", str(tmp_path / "cluster"), "--scheduler", address])
             == 0
@@ -96,15 +51,6 @@ def test_study_on_an_existing_cluster_equals_the_serial_run(tmp_path, capsys):
         err = capsys.readouterr().err
         assert "INFO" not in err  # quiet by default: no Dask chatter
         assert "[4/4]" in err
-    finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in procs:
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
-        logs.close()
     # the serial run with the threads dask's nanny gives its workers (MKL/OMP/OpenBLAS: 1)
     env = {
         **os.environ,

@@ -10,16 +10,14 @@ from __future__ import annotations
 
 import json
 import os
-import socket
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
 from studies.cli.main import main
 from tests.conftest import PLUGINS
+from tests.dask_cluster import external_cluster
 
 CASES = "30:200,400;60:200,400;90:200,400"
 HIDDEN = "frame_compliance:compliance_mm_per_n=2e-5"
@@ -100,58 +98,16 @@ def test_compare_on_a_local_cluster_equals_the_in_process_run(
     assert json.loads((out / "comparison.json").read_text())["n_computed"] == 0
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 @pytest.mark.slow
 def test_diagnose_on_an_existing_cluster_equals_the_in_process_run(
     jenkins, tmp_path, capsys
 ) -> None:  # type: ignore[no-untyped-def]
-    from distributed import Client
-
     model = _model(tmp_path)
     data = _data(tmp_path, model, capsys)
     here = _diagnose(model, data, tmp_path / "here", capsys)
-    port = _free_port()
-    address = f"tcp://127.0.0.1:{port}"
-    dask = str(Path(sys.executable).parent / "dask")
     env = {**os.environ, "PYTHONPATH": str(PLUGINS)}  # the plug-in kind, as an installed package
-    logs = (tmp_path / "dask.log").open("w")
-    procs = [
-        subprocess.Popen(
-            [dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-            stdout=logs,
-            stderr=subprocess.STDOUT,
-        )
-    ]
-    try:
-        time.sleep(2.0)
-        for _ in range(2):
-            worker = [dask, "worker", address, "--nthreads", "1", "--host", "127.0.0.1"]
-            procs.append(
-                subprocess.Popen(
-                    [*worker, "--no-dashboard"],
-                    stdout=logs,
-                    stderr=subprocess.STDOUT,
-                    cwd=tmp_path,
-                    env=env,
-                )
-            )
-        with Client(address, timeout="30s") as client:
-            client.wait_for_workers(2, timeout=60)
+    with external_cluster(tmp_path, env=env) as address:
         there = _diagnose(model, data, tmp_path / "there", capsys, "--scheduler", address)
-    finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in procs:
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
-        logs.close()
     assert here["verdict"] == "effect_missing"
     _same_diagnosis(here, there)
     assert there["stats"]["n_computed"] == here["stats"]["n_computed"] > 0
