@@ -1,14 +1,24 @@
-"""A 6-case diagnosis of the general hinge at the default mesh, in process and on 2 workers.
+"""6-case diagnoses at the default mesh: in process and on 2 workers, coarse to fine or not.
 
-Issue 35, item 2: the wall time of a default-mesh diagnosis and its 1 → 2 worker speed-up.
-The data: ``hingelab synth`` from the coarse example model (its own, finer data mesh; so
-the default-mesh model is judged on loops of another mesh), Δr 0 and 0.1 mm × Fg 100, 250,
-400 N, a hidden frame compliance of 2e-5 mm/N, seed 5. The model: the same hinge on the
-default mesh. Each run starts from an empty result store (``--out`` of its own) in a fresh
-process; the verdict, fitted value and χ² of the two runs must agree (the cluster path runs
-the same code).
+Issue 35, item 2: the wall time of a default-mesh diagnosis, its 1 → 2 worker speed-up and
+the width of its task graph (runs per batch).
 
-Run: .venv/bin/python benchmarks/bench_diagnose_workers.py [WORKDIR]
+* ``general``: data from ``hingelab synth`` of the coarse example model (its own, finer data
+  mesh; so the default-mesh model is judged on loops of another mesh), Δr 0 and 0.1 mm ×
+  Fg 100, 250, 400 N, a hidden frame compliance of 2e-5 mm/N, seed 5. The model: the same
+  hinge on the default mesh. Runs: the plain search (``--no-screen``: every grid on the
+  default mesh) in process — the reference —, then coarse to fine (the default) in
+  process and on 2 workers.
+* ``bearing``: the bearing hinge with frictional fits (studies/examples/MODEL_bearing_fits.toml,
+  default mesh) on data synthesised from the same model on its coarse preset (and synth's
+  finer data mesh from that), F_p 0, 100, 200 N × Fg 150, 400 N, hidden frame compliance
+  2e-5 mm/N, seed 5; in process and on 2 workers.
+
+Each run starts from an empty result store (``--out`` of its own) in a fresh process; the
+verdict, fitted value and χ² of the runs must agree (the cluster path runs the same code;
+the plain search is another path to the same fit).
+
+Run: .venv/bin/python benchmarks/bench_diagnose_workers.py [general|bearing ...] [--work DIR]
 """
 
 from __future__ import annotations
@@ -24,58 +34,117 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import print_table, run_isolated
 
 ROOT = Path(__file__).resolve().parents[1]
-CASES = "0:100,250,400;0.1:100,250,400"
 HIDDEN = "frame_compliance:compliance_mm_per_n=2e-5"
+CASES = {"general": "0:100,250,400;0.1:100,250,400", "bearing": "0:150,400;100:150,400;200:150,400"}
+EXAMPLE = {"general": "MODEL.toml", "bearing": "MODEL_bearing_fits.toml"}
 
 
-def _synth(work: str) -> dict[str, Any]:
-    from studies.cli.main import main
-
-    argv = ["synth", str(ROOT / "studies/examples/MODEL.toml"), "--effect", HIDDEN]
-    assert main([*argv, "--cases", CASES, "--seed", "5", "--out", f"{work}/data"]) == 0
-    return {}
-
-
-def _diagnose(work: str, model: str, workers: int) -> dict[str, Any]:
-    import contextlib
-    import io
-
-    from studies.cli.main import main
-
-    out = f"{work}/diag_w{workers}"
-    buf = io.StringIO()
-    argv = ["diagnose", model, f"{work}/data", "--json", "--out", out]
-    with contextlib.redirect_stdout(buf):
-        assert main([*argv, "--workers", str(workers)]) == 0
-    d = json.loads(buf.getvalue())
-    best = d["candidates"][0] if d["candidates"] else {}
-    return {
-        "workers": workers,
-        "verdict": d["verdict"],
-        "best": best.get("name", ""),
-        "value": best.get("value", float("nan")),
-        "chi2": best.get("chi2", float("nan")),
-        "cycles": d["stats"].get("n_cycles", d["stats"].get("n_computed", "")),
-    }
+def _coarse_model(kind: str, work: str) -> str:
+    """The example model file on its kind's coarse preset (the data's source)."""
+    if kind == "general":
+        return str(ROOT / "studies/examples/MODEL.toml")  # already the coarse preset
+    text = (ROOT / "studies/examples" / EXAMPLE[kind]).read_text()
+    head, _, tail = text.partition("[mesh]")
+    tail = tail[tail.index("[materials.") if "[materials." in tail else tail.index("[friction]") :]
+    coarse = (
+        "[mesh]\nsize_mm = 4.0\ncontact_size_mm = 0.8\nslave_ratio = 1.5\n"
+        '[mesh.part_sizes_mm]\n"ring" = 1.2\n\n'
+    )
+    path = Path(work, f"MODEL_{kind}_coarse.toml")
+    path.write_text(head + coarse + tail)
+    return str(path)
 
 
-def main() -> None:
-    work = sys.argv[1] if len(sys.argv) > 1 else tempfile.mkdtemp(prefix="bench_diag_w_")
-    os.makedirs(work, exist_ok=True)
-    if not Path(work, "data", "cases.csv").is_file():
-        run_isolated(_synth, work)
-    # the model: the example hinge on the default mesh ([mesh] left out), its other settings
+def _default_model(kind: str, work: str) -> str:
+    """The example model file on the default mesh."""
+    if kind == "bearing":
+        return str(ROOT / "studies/examples" / EXAMPLE[kind])  # its [mesh] is the default
     text = (ROOT / "studies/examples/MODEL.toml").read_text()
     head, _, tail = text.partition("[mesh]")
     tail = tail[tail.index("[friction]") :]
     model = Path(work, "MODEL_default_mesh.toml")
     model.write_text(head + tail)
-    rows = [run_isolated(_diagnose, work, str(model), w) for w in (1, 2)]
-    print_table(rows, ["workers", "wall_s", "peak_MB", "cycles", "verdict", "best", "value", "chi2"])
-    print(f"speed-up 1 → 2 workers: {rows[0]['wall_s'] / rows[1]['wall_s']:.2f}×")
-    same = all(rows[0][k] == rows[1][k] for k in ("verdict", "best"))
-    rel = max(abs(rows[1][k] / rows[0][k] - 1.0) for k in ("value", "chi2"))
-    print(f"same verdict and effect: {same}; fitted value and χ² agree to {rel:.1e} relative")
+    return str(model)
+
+
+def _synth(work: str, kind: str) -> dict[str, Any]:
+    from studies.cli.main import main
+
+    argv = ["synth", _coarse_model(kind, work), "--effect", HIDDEN, "--cases", CASES[kind]]
+    assert main([*argv, "--seed", "5", "--out", f"{work}/data_{kind}"]) == 0
+    return {}
+
+
+def _diagnose(work: str, kind: str, model: str, workers: int, screen: bool) -> dict[str, Any]:
+    import contextlib
+    import io
+
+    from studies.cli.main import main
+
+    label = f"{kind}_w{workers}_{'screen' if screen else 'plain'}"
+    argv = ["diagnose", model, f"{work}/data_{kind}", "--json", "--out", f"{work}/{label}"]
+    argv += ["--workers", str(workers)] + ([] if screen else ["--no-screen"])
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main(argv) == 0
+    d = json.loads(buf.getvalue())
+    best = d["candidates"][0] if d["candidates"] else {}
+    st = d["stats"]
+    return {
+        "hinge": kind,
+        "search": "coarse→fine" if screen else "plain",
+        "workers": workers,
+        "verdict": d["verdict"],
+        "best": best.get("name", ""),
+        "value": best.get("value", float("nan")),
+        "chi2": best.get("chi2", float("nan")),
+        "cycles": st.get("n_cycles", ""),
+        "coarse_cycles": st.get("screen_cycles", 0),
+        "batches": st.get("batches", ""),
+        "widest": st.get("widest_batch", ""),
+        "refine_runs": ",".join(str(c.get("refine_runs", "")) for c in d["candidates"]),
+    }
+
+
+def main() -> None:
+    args = sys.argv[1:]
+    work = tempfile.mkdtemp(prefix="bench_diag_w_")
+    if "--work" in args:
+        i = args.index("--work")
+        work = args[i + 1]
+        del args[i : i + 2]
+    kinds = args or ["general", "bearing"]
+    os.makedirs(work, exist_ok=True)
+    print(f"work folder {work}; load average {os.getloadavg()}")
+    for kind in kinds:
+        if not Path(work, f"data_{kind}", "cases.csv").is_file():
+            run_isolated(_synth, work, kind)
+        model = _default_model(kind, work)
+        runs = [(1, True), (2, True)]
+        if kind == "general":
+            runs = [(1, False), *runs]
+        rows = [run_isolated(_diagnose, work, kind, model, w, sc) for w, sc in runs]
+        cols = ["hinge", "search", "workers", "wall_s", "peak_MB", "cycles", "coarse_cycles"]
+        cols += ["batches", "widest", "refine_runs", "verdict", "best", "value", "chi2"]
+        print_table(rows, cols)
+        one, two = rows[-2], rows[-1]
+        print(f"{kind}: speed-up 1 → 2 workers: {one['wall_s'] / two['wall_s']:.2f}×")
+        same = all(
+            r["verdict"] == rows[0]["verdict"] and r["best"] == rows[0]["best"] for r in rows
+        )
+        rel = max(abs(two[k] / one[k] - 1.0) for k in ("value", "chi2"))
+        print(
+            f"{kind}: same verdict and effect in every run: {same}; 1 vs 2 workers: value and "
+            f"χ² agree to {rel:.1e} relative"
+        )
+        if kind == "general":
+            ref = rows[0]
+            print(
+                f"general: coarse→fine vs plain: value {one['value'] / ref['value'] - 1:+.2%}, "
+                f"χ² {one['chi2']:.3g} vs {ref['chi2']:.3g}; "
+                f"{ref['wall_s'] / one['wall_s']:.2f}× faster in process"
+            )
+        print(f"load average after: {os.getloadavg()}", flush=True)
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 
 ``calibrate`` fits μ if asked (first), then adds the named effects one after another:
 each is first fitted alone on the model that holds the ones before it
-(``validation.candidate_fit.fit_candidate``, the **greedy** value, kept in the ledger), and
+(``validation.candidates.fit_candidate``, the **greedy** value, kept in the ledger), and
 then the primary parameter of **every** effect in the model is re-fitted jointly from the
 previous values (``validation.joint_fit``: σ and correlations from the Jacobian, and the
 parameters that moved by more than their σ). It returns the extended model and one ledger
@@ -32,10 +32,10 @@ from model.spec import ModelSpec
 from validation.candidate_fit import (
     DiagnoseSettings,
     chi2,
-    fit_candidate,
     grid_effects,
     measured_features,
 )
+from validation.candidates import fit_candidate
 from validation.evaluate import ModelEvaluator
 from validation.feature_misfit import feature_misfit, fitted_cases
 from validation.joint_fit import joint_fit

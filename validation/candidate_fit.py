@@ -14,15 +14,15 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from scipy import optimize, stats
 
 from cad.errors import ParameterError
 from fe.effects.registry import REGISTRY
 from fe.kinds import DEFAULT_KIND, DesignVariable, hinge_kind
-from validation.evaluate import Clock, ModelEvaluator
+from validation.evaluate import Clock
 from validation.features import FeatureSettings, derived, feature_sigma, loop_features
 from validation.loops import process_loop
 from validation.measurements import MeasurementSet
+from validation.param_search import grid
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -36,7 +36,11 @@ class DiagnoseSettings:
         alpha: False-alarm probability of the whole diagnosis.
         grid_points: Grid values per candidate parameter.
         grid_decades: Decades the grid spans below the parameter's upper bound.
-        refine_iter: True-model evaluations of the refinement.
+        refine_iter: True-model points of a candidate's refinement, at most
+            (``validation.param_search``: usually 1–3 suffice).
+        screen: Fit the grids on the kind's coarse mesh when the model's is finer (coarse
+            to fine, ``validation.diagnose.screen_mesh``); the refinement and every χ² of
+            the verdict stay on the model's own mesh.
         heldout_min_gain: Fraction the held-out χ² must fall by.
         explained_min: Fraction of the excess χ² the best candidate must explain.
         increments_per_stage: Increments per stage of the diagnosis runs (None: model file's).
@@ -64,6 +68,7 @@ class DiagnoseSettings:
     power: float = 0.8
     tell_rel_error: float = 0.5
     candidates: tuple[str, ...] | None = None
+    screen: bool = True
 
     def __post_init__(self) -> None:  # before any model runs
         unknown = sorted(set(self.candidates or ()) - set(REGISTRY))
@@ -286,6 +291,9 @@ class CandidateFit:
         features: Model features at the fit, shape (n_points, 3).
         model_effects: The effects of that fit: the candidate and the model's own
             post-only effects as re-tuned with it.
+        refine_runs: True-model points the refinement ran (``validation.param_search``).
+        error_sigma: The search's stated error: the largest |interpolated − true|/σ of an
+            informative feature at its last refinement point (NaN: none run).
     """
 
     name: str
@@ -305,6 +313,8 @@ class CandidateFit:
     bic: float
     features: FloatArray = field(repr=False, compare=False)
     model_effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    refine_runs: int = 0
+    error_sigma: float = math.nan
 
     @property
     def counts(self) -> bool:
@@ -320,8 +330,9 @@ class CandidateFit:
         }
 
 
-def _grid(hi: float, settings: DiagnoseSettings) -> FloatArray:
-    return hi * 10.0 ** np.linspace(-settings.grid_decades, 0.0, settings.grid_points)
+def settings_grid(hi: float, settings: DiagnoseSettings) -> FloatArray:
+    """The log grid of a candidate parameter whose upper bound is ``hi`` (``param_search.grid``)."""
+    return grid(hi, settings.grid_points, settings.grid_decades)
 
 
 def grid_effects(name: str, settings: DiagnoseSettings) -> list[dict[str, dict[str, float]]]:
@@ -331,39 +342,7 @@ def grid_effects(name: str, settings: DiagnoseSettings) -> list[dict[str, dict[s
     (``validation.evaluate.ModelEvaluator.prefetch``) before the fit reads them.
     """
     spec = REGISTRY[name].params[0]
-    return [{name: {spec.name: float(p)}} for p in _grid(spec.hi, settings)]
-
-
-def _interp_features(grid: FloatArray, feats: FloatArray, p: float) -> FloatArray:
-    """Linear interpolation in p of features on the grid, shape (n_points, 3)."""
-    j = int(np.clip(np.searchsorted(grid, p) - 1, 0, len(grid) - 2))
-    t = (p - grid[j]) / (grid[j + 1] - grid[j])
-    return np.asarray((1 - t) * feats[j] + t * feats[j + 1], dtype=np.float64)
-
-
-def _scan(
-    grid: FloatArray,
-    feats: FloatArray,
-    base: FloatArray,
-    meas: MeasuredFeatures,
-    rows: npt.NDArray[np.bool_],
-) -> tuple[float, FloatArray]:
-    """Return (parameter, features) minimising χ² over ``rows`` on the interpolant.
-
-    A dense log scan between the grid's ends; the effect switched off (p = 0, the
-    baseline ``base``) competes too.
-    """
-    finite = np.all(np.isfinite(feats.reshape(len(grid), -1)), axis=1)
-    g, f = grid[finite], feats[finite]
-    best = (chi2(base, meas, rows), 0.0, base)
-    if len(g) < 2:
-        return best[1], best[2]
-    for p in 10.0 ** np.linspace(math.log10(g[0]), math.log10(g[-1]), 301):
-        fp = _interp_features(g, f, float(p))
-        c = chi2(fp, meas, rows)
-        if c < best[0]:
-            best = (c, float(p), fp)
-    return best[1], best[2]
+    return [{name: {spec.name: float(p)}} for p in settings_grid(spec.hi, settings)]
 
 
 def holdout_folds(points: Sequence[tuple[float, float]]) -> list[npt.NDArray[np.bool_]]:
@@ -383,113 +362,3 @@ def holdout_folds(points: Sequence[tuple[float, float]]) -> list[npt.NDArray[np.
         return [ranks == k for k in sorted(set(rank))]
     clearances = sorted({p[0] for p in points})
     return [np.array([p[0] == c for p in points]) for c in clearances]
-
-
-def _retuned_features(
-    evaluator: ModelEvaluator, effects: Mapping[str, Mapping[str, float]], meas: MeasuredFeatures
-) -> FloatArray:
-    """Features with ``effects``, the model's own post-only effects re-tuned (``_retuned``)."""
-    return evaluator.features(_retuned(evaluator, effects, meas))
-
-
-def _retuned(
-    evaluator: ModelEvaluator, effects: Mapping[str, Mapping[str, float]], meas: MeasuredFeatures
-) -> dict[str, dict[str, float]]:
-    """Return ``effects`` plus the model's own post-only effects re-tuned to the data.
-
-    A post-only effect already in the model (e.g. a fitted ``frame_compliance``) costs no
-    cycle, so its parameter is refitted (bounded Brent) with every candidate value: an
-    effect fitted alone in an earlier round has absorbed part of the next one, and a
-    candidate judged against that frozen value would look weaker than it is.
-    """
-    from fe.effects.registry import REGISTRY
-    from validation.evaluate import is_post_only
-
-    own = {n: dict(p) for n, p in evaluator.spec.effects.items() if is_post_only(n)}
-    extra = {n: dict(p) for n, p in effects.items()}
-    for n in own:
-        for par in REGISTRY[n].params:
-
-            def cost(v: float, n: str = n, k: str = par.name) -> float:
-                trial = {**own, **extra, n: {**own[n], k: float(v)}}
-                return chi2(evaluator.features(trial), meas)
-
-            res = optimize.minimize_scalar(
-                cost, bounds=(par.lo, par.hi), method="bounded", options={"xatol": par.hi * 1e-4}
-            )
-            own[n][par.name] = float(res.x)
-    return {**own, **extra}
-
-
-def fit_candidate(
-    evaluator: ModelEvaluator,
-    name: str,
-    meas: MeasuredFeatures,
-    base_features: FloatArray,
-    n_tried: int,
-    settings: DiagnoseSettings,
-) -> CandidateFit:
-    """Fit one candidate's parameter and judge it (``validation.diagnose`` docstring, steps 3–4)."""
-    from fe.effects.registry import REGISTRY
-
-    spec = REGISTRY[name].params[0]
-    grid = _grid(spec.hi, settings)
-
-    def at(p: float) -> FloatArray:
-        return _retuned_features(evaluator, {name: {spec.name: p}}, meas)
-
-    feats = np.array([at(float(p)) for p in grid])
-    rows = np.ones(len(meas.points), dtype=bool)
-    p0, _ = _scan(grid, feats, base_features, meas, rows)
-    c0 = chi2(base_features, meas)
-    if p0 == 0.0:
-        p0 = float(grid[0])
-
-    def cost(u: float) -> float:
-        return chi2(at(float(10.0**u)), meas)
-
-    u0 = math.log10(p0)
-    lo, hi = math.log10(grid[0]), math.log10(grid[-1])
-    res = optimize.minimize_scalar(
-        cost,
-        bounds=(max(lo, u0 - 0.25), min(hi, u0 + 0.25)),
-        method="bounded",
-        options={"maxiter": settings.refine_iter, "xatol": 0.01},
-    )
-    candidates = [(c0, 0.0), (float(res.fun), float(10.0**res.x))] + [
-        (chi2(feats[j], meas), float(grid[j])) for j in range(len(grid))
-    ]
-    c2, value = min(candidates)
-    fitted = at(value) if value > 0 else base_features
-    model_effects = _retuned(evaluator, {name: {spec.name: value}}, meas)
-    n = meas.n_obs
-    d = c0 - c2
-    f_stat = d / max(1.0, c2 / max(n - 1, 1))
-    p_value = float(stats.f.sf(f_stat, 1, max(n - 1, 1)))
-    significant = p_value < settings.alpha / max(n_tried, 1)
-    held_base = held = 0.0
-    for test in holdout_folds(meas.points):
-        train = ~test
-        _, f_fold = _scan(grid, feats, base_features, meas, train)
-        held_base += chi2(base_features, meas, test)
-        held += chi2(f_fold, meas, test)
-    at_bound = value <= grid[0] * 1.0001 or value >= grid[-1] * 0.9999
-    return CandidateFit(
-        name=name,
-        param=spec.name,
-        value=value,
-        unit=spec.unit,
-        chi2=c2,
-        delta_chi2=d,
-        f_stat=f_stat,
-        p_value=p_value,
-        significant=bool(significant),
-        heldout_chi2_base=held_base,
-        heldout_chi2=held,
-        heldout_ok=bool(held <= (1.0 - settings.heldout_min_gain) * held_base),
-        at_bound=bool(at_bound),
-        aic=c2 + 2.0,
-        bic=c2 + math.log(n),
-        features=fitted,
-        model_effects=model_effects,
-    )

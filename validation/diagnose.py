@@ -15,11 +15,16 @@ Workflow (``diagnose``):
 3. **Per candidate** (every registry effect not already in the model, applicable to all
    cases — ``interference`` and ``face_friction`` need Δr = 0, see their
    ``zero_clearance_reason``): the model's own post-only effects (no cycle
-   needed) are re-tuned with it (``_retuned_features``), and its one parameter is fitted on a log grid
-   (``grid_points`` values over ``grid_decades`` decades below its upper bound, features
-   interpolated linearly in the parameter between grid points, scanned densely), then
-   refined on the true model (bounded Brent in log10 p, ``refine_iter`` evaluations).
-   Every run reuses the clearance's factorisation (``validation.evaluate``).
+   needed) are re-tuned with it, and its one parameter is fitted on a log grid
+   (``grid_points`` values over ``grid_decades`` decades below its upper bound) by an
+   interpolant refined on the true model (``validation.param_search``: each round runs
+   every candidate's interpolated minimum as one batch, at most ``refine_iter`` points a
+   candidate, with the interpolation error at the fit stated in σ). **Coarse to fine**:
+   when the model's mesh is finer than its kind's coarse preset, the grids run on the
+   coarse mesh (``screen_mesh``), corrected by the ratio of the two meshes' features at the
+   baseline and at each refinement point; the refinement and every χ² of the verdict are
+   the model's own mesh's. Every run reuses the clearance's factorisation
+   (``validation.evaluate``).
 4. **False alarms**:
 
    * *significance*: ``F = Δχ² / max(1, χ²_c/(N − 1))`` (σ that is too small, e.g. from
@@ -59,7 +64,8 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy import stats
 
-from cad.errors import EffectError, HingelabError, ParameterError
+from cad.errors import HingelabError, ParameterError
+from mesh.settings import MeshSettings
 from model.spec import ModelSpec
 from validation.candidate_fit import (
     CandidateFit,
@@ -67,11 +73,10 @@ from validation.candidate_fit import (
     MeasuredFeatures,
     chi2,
     design_text,
-    fit_candidate,
-    grid_effects,
     measured_features,
     residuals,
 )
+from validation.candidates import fit_candidates
 from validation.evaluate import ModelEvaluator
 from validation.features import FEATURES
 from validation.measurements import MeasurementSet
@@ -337,6 +342,19 @@ def refusal(spec: ModelSpec, name: str) -> str | None:
     return None
 
 
+def screen_mesh(spec: ModelSpec) -> MeshSettings | None:
+    """The coarser mesh a diagnosis of ``spec`` fits its grids on, or None.
+
+    The kind's coarse preset (``HingeKind.mesh_settings(coarse=True)``) when the model's
+    mesh is finer than it (a smaller global or contact size); None when it is not (the
+    grids then run on the model itself).
+    """
+    coarse = spec.hinge_kind.mesh_settings(coarse=True)
+    m = spec.mesh
+    finer = m.global_mm < coarse.global_mm or m.master_mm < coarse.master_mm
+    return coarse if finer else None
+
+
 def diagnose(
     spec: ModelSpec,
     data: MeasurementSet,
@@ -387,14 +405,22 @@ def diagnose(
             skipped[name] = "not among the candidates asked for"
         else:
             names.append(name)
-    ev.prefetch([(e, None) for n in names for e in grid_effects(n, s)])  # the independent part
-    fits = []
-    for name in names:
-        try:
-            fits.append(fit_candidate(ev, name, meas, base, len(names), s))
-        except EffectError as err:  # a user's effect that fails: the others still run
-            skipped[name] = f"failed: {err}"
+    screen = None
+    coarse = screen_mesh(spec) if s.screen else None
+    if coarse is not None and names:
+        screen = ModelEvaluator(
+            dataclasses.replace(spec, mesh=coarse),
+            meas.points,
+            s.increments_per_stage,
+            s.clearance_increments,
+            ev.service,
+            meas.clocks,
+        )
+    fits, failed = fit_candidates(ev, names, meas, base, len(names), s, screen)
+    for name, error in failed.items():  # a user's effect that fails: the others still ran
+        skipped[name] = f"failed: {error}"
     fits.sort(key=lambda f: f.chi2)
+    batches = ev.batches + ([] if screen is None else screen.batches)
     verdict, effects, message, sep = _verdict(fits, c0, n, limit, meas, s)
     table = None
     best = [f for f in fits if f.counts][:1]  # the residual left beside the best candidate
@@ -418,6 +444,9 @@ def diagnose(
         signatures=table,
         stats={
             "n_cycles": ev.n_cycles,
+            "screen_cycles": 0 if screen is None else screen.n_cycles,
+            "batches": len(batches),
+            "widest_batch": max(batches, default=0),
             "n_computed": ev.service.n_computed,
             "cycle_s": ev.cycle_s,
             "setup_s": ev.setup_s,

@@ -102,6 +102,8 @@ class ModelEvaluator:
         self.service = ModelService() if service is None else service
         self._loops: dict[tuple[Any, ...], tuple[FloatArray, FloatArray] | None] = {}
         self.n_cycles = 0
+        self.batches: list[int] = []
+        """Runs not yet made per ``prefetch`` batch, in order: the widths of the task graph."""
         self.cycle_s = 0.0
         self.setup_s = 0.0
 
@@ -160,19 +162,23 @@ class ModelEvaluator:
         """Compute the loops ``features`` will need for each (effects, μ), as one batch.
 
         Only with a service that has a runner (``model.cluster.ClusterRunner``): the
-        missing (design point, effects, μ) runs go to the Dask workers together, every
-        run of one geometry on one worker; the loops they return are the ones ``features``
-        would have computed, kept in the same cache. In process this does nothing (the
-        runs are made when asked for, as before). A request whose effects are refused,
+        missing (design point, effects, μ) runs go to the Dask workers together; the
+        loops they return are the ones ``features`` would have computed, kept in the same
+        cache. In process this only counts the batch (``batches``; the runs are made when
+        asked for, as before). A request whose effects are refused,
         or a run that fails, is left to ``features`` (which words the failure).
+        ``prefetch_together`` makes one batch of several evaluators' requests.
 
         Args:
             requests: (extra effects, μ or None) pairs, as ``features`` takes them.
         """
-        if getattr(self.service, "runner", None) is None:
-            return
+        prefetch_together([(self, requests)])
+
+    def _wanted(
+        self, requests: Sequence[tuple[Effects, float | None]]
+    ) -> dict[tuple[Any, ...], tuple[Any, Any]]:
+        """The runs ``requests`` need that are not cached: key → (spec, design point)."""
         from fe.effects.registry import validate_effects
-        from validation.synth import machine_path
 
         wanted: dict[tuple[Any, ...], tuple[Any, Any]] = {}
         for effects, mu in requests:
@@ -186,17 +192,20 @@ class ModelEvaluator:
                 key = (point, _key(solve), m)
                 if key not in self._loops and key not in wanted:
                     wanted[key] = self._job(point, solve, m)
-        t0 = time.perf_counter()
-        outcomes = self.service.run_jobs(list(wanted.values()))
-        for key, res in zip(wanted, outcomes, strict=True):
-            if not isinstance(res, BaseException):
-                self._loops[key] = machine_path(res)
-                self.n_cycles += 1
-            elif isinstance(res, HingelabError) and not isinstance(res, EffectError):
-                logger.info("cycle failed at %s with %s: %s", key[0], dict(key[1]), res)
-                self._loops[key] = None
-                self.n_cycles += 1
-        self.cycle_s += time.perf_counter() - t0
+        return wanted
+
+    def _accept(self, key: tuple[Any, ...], res: Any, seconds: float) -> None:
+        """Keep what a worker returned for run ``key`` (a cycle, or the error it raised)."""
+        from validation.synth import machine_path
+
+        if not isinstance(res, BaseException):
+            self._loops[key] = machine_path(res)
+            self.n_cycles += 1
+        elif isinstance(res, HingelabError) and not isinstance(res, EffectError):
+            logger.info("cycle failed at %s with %s: %s", key[0], dict(key[1]), res)
+            self._loops[key] = None
+            self.n_cycles += 1
+        self.cycle_s += seconds
 
     def features(self, effects: Effects, mu: float | None = None) -> FloatArray:
         """Return the features at every design point, shape (n_points, 3); NaN rows where it fails.
@@ -268,6 +277,34 @@ class ModelEvaluator:
                 row.append((cid, _processed(F, d_rec, f"model {point} at {cid}'s clock")))
             out.append(row)
         return out
+
+
+def prefetch_together(
+    batches: Sequence[tuple[ModelEvaluator, Sequence[tuple[Effects, float | None]]]],
+) -> None:
+    """``ModelEvaluator.prefetch`` of several evaluators' requests as one batch per service.
+
+    Evaluators of one model on two meshes (``diagnose``'s coarse-to-fine screen) share a
+    service: their runs go to the workers together, not one evaluator after the other.
+    Each evaluator records the width of the batch it took part in (``batches``).
+    """
+    by_service: dict[int, list[tuple[ModelEvaluator, tuple[Any, ...], tuple[Any, Any]]]] = {}
+    services: dict[int, Any] = {}
+    for ev, requests in batches:
+        for key, job in ev._wanted(requests).items():
+            by_service.setdefault(id(ev.service), []).append((ev, key, job))
+            services[id(ev.service)] = ev.service
+    for sid, jobs in by_service.items():
+        for ev in {id(e): e for e, _, _ in jobs}.values():
+            ev.batches.append(len(jobs))
+        service = services[sid]
+        if getattr(service, "runner", None) is None:
+            continue  # in process: each run is made when ``features`` asks for it
+        t0 = time.perf_counter()
+        outcomes = service.run_jobs([job for _, _, job in jobs])
+        share = (time.perf_counter() - t0) / len(jobs)
+        for (ev, key, _), res in zip(jobs, outcomes, strict=True):
+            ev._accept(key, res, share)
 
 
 def _processed(F: FloatArray, d: FloatArray, source: str) -> ProcessedLoop | None:

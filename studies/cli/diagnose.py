@@ -7,8 +7,10 @@ features (``validation.features``), fits every registry effect's parameter
 candidate and value) and prints the residual pattern, the ranked candidates and the
 verdict: ``effect_missing``, ``no_missing_effect``, ``indistinguishable`` or
 ``unexplained``. The baseline and every candidate's grid are independent runs: with
-``--workers``/``--scheduler`` they run as one batch of Dask tasks, each geometry on one
-worker. Exit status 0 whatever the verdict; 1 only for bad input.
+``--workers``/``--scheduler`` they run as batches of Dask tasks. On a model finer than
+its kind's coarse preset the grids run on the coarse mesh and only the refinement and the
+verdict on the model's own (``--no-screen``: everything on the model's mesh). Exit
+status 0 whatever the verdict; 1 only for bad input.
 """
 
 from __future__ import annotations
@@ -47,6 +49,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="false-alarm probability, in (0, 0.5] (default 0.01)",
     )
     p.add_argument(
+        "--no-screen",
+        action="store_true",
+        help="fit every candidate's grid on the model's own mesh (default: on the kind's coarse "
+        "mesh when the model's is finer, then refined and judged on the model's own)",
+    )
+    p.add_argument(
         "--candidates",
         default=None,
         metavar="NAME[,NAME]",
@@ -81,6 +89,7 @@ def run(args: argparse.Namespace) -> int:
         alpha=args.alpha,
         increments_per_stage=args.increments,
         clearance_increments=2 * args.increments,
+        screen=not args.no_screen,
         candidates=None
         if args.candidates is None
         else tuple(n.strip() for n in args.candidates.split(",") if n.strip()),
