@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict, deque
-from collections.abc import Hashable, Sequence
+from collections.abc import Sequence
 from typing import NamedTuple
 
 from cad.errors import check_range
@@ -70,7 +70,7 @@ class Dispatcher:
 
     def __init__(
         self,
-        geometries: Sequence[Hashable],
+        geometries: Sequence[str],
         *,
         steal_min: int = 2,
         keep: int | None = None,
@@ -82,17 +82,17 @@ class Dispatcher:
         self.keep = keep
         self.max_losses = max_losses
         self._geometry = list(geometries)
-        self._pending: dict[Hashable, deque[int]] = {}
+        self._pending: dict[str, deque[int]] = {}
         for job, g in enumerate(self._geometry):
             self._pending.setdefault(g, deque()).append(job)
-        self._slots: dict[Hashable, int] = {}
-        self._flight: dict[Hashable, set[int]] = {}
-        self._held: dict[Hashable, OrderedDict[Hashable, None]] = {}
+        self._slots: dict[str, int] = {}
+        self._flight: dict[str, set[int]] = {}
+        self._held: dict[str, OrderedDict[str, None]] = {}
         self._losses: dict[int, int] = {}
-        self.setups: list[tuple[Hashable, Hashable]] = []
+        self.setups: list[tuple[str, str]] = []
 
     @property
-    def workers(self) -> list[Hashable]:
+    def workers(self) -> list[str]:
         """The workers jobs go to, in the order they were added."""
         return list(self._slots)
 
@@ -106,15 +106,15 @@ class Dispatcher:
         """True when every job was handed out and is done (or given up)."""
         return not self._pending and not any(self._flight.values())
 
-    def in_flight(self, worker: Hashable) -> set[int]:
+    def in_flight(self, worker: str) -> set[int]:
         """The jobs handed to ``worker`` and not done yet."""
         return set(self._flight.get(worker, ()))
 
-    def holds(self, worker: Hashable) -> list[Hashable]:
+    def holds(self, worker: str) -> list[str]:
         """The geometries ``worker`` holds prepared, the least recently used first."""
         return list(self._held.get(worker, ()))
 
-    def add_worker(self, worker: Hashable, slots: int, holds: Sequence[Hashable] = ()) -> None:
+    def add_worker(self, worker: str, slots: int, holds: Sequence[str] = ()) -> None:
         """Take ``worker``: ``slots`` jobs in flight at most, ``holds`` prepared already.
 
         Args:
@@ -131,7 +131,7 @@ class Dispatcher:
         while self.keep is not None and len(held) > self.keep:
             held.popitem(last=False)
 
-    def remove_worker(self, worker: Hashable) -> Removed:
+    def remove_worker(self, worker: str) -> Removed:
         """Forget ``worker``: its jobs in flight go back to the front of their queues.
 
         Returns:
@@ -157,11 +157,11 @@ class Dispatcher:
         self._pending.clear()
         return jobs
 
-    def done(self, worker: Hashable, job: int) -> None:
+    def done(self, worker: str, job: int) -> None:
         """``job`` is done on ``worker`` (with a result or an error): a slot is free."""
         self._flight.get(worker, set()).discard(job)
 
-    def next_job(self, worker: Hashable) -> int | None:
+    def next_job(self, worker: str) -> int | None:
         """The job ``worker`` runs next, or None (no free slot, or nothing worth its while)."""
         if worker not in self._slots or len(self._flight[worker]) >= self._slots[worker]:
             return None
@@ -182,7 +182,7 @@ class Dispatcher:
         self._flight[worker].add(job)
         return job
 
-    def _choose(self, worker: Hashable) -> Hashable | None:
+    def _choose(self, worker: str) -> str | None:
         """The geometry ``worker`` takes its next job of, or None."""
         held = self._held[worker]
         for g in reversed(held):  # the one it ran last first

@@ -160,8 +160,8 @@ class ModelEvaluator:
         """Compute the loops ``features`` will need for each (effects, μ), as one batch.
 
         Only with a service that has a runner (``model.cluster.ClusterRunner``): the
-        missing (design point, effects, μ) runs go to the Dask workers together, every
-        run of one geometry on one worker; the loops they return are the ones ``features``
+        missing (design point, effects, μ) runs go to the Dask workers together, each
+        worker running the geometries it holds first; the loops they return are the ones ``features``
         would have computed, kept in the same cache. In process this does nothing (the
         runs are made when asked for, as before). A request whose effects are refused,
         or a run that fails, is left to ``features`` (which words the failure).

@@ -189,12 +189,12 @@ def test_one_geometry_of_many_jobs_runs_faster_on_two_workers() -> None:
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
-    geometries=st.lists(st.integers(0, 3), max_size=25),
+    geometries=st.lists(st.sampled_from("abcd"), max_size=25),
     slots=st.lists(st.integers(1, 2), min_size=1, max_size=3),
     data=st.data(),
 )
 def test_every_job_runs_once_within_the_rules(
-    geometries: list[int], slots: list[int], data: st.DataObject
+    geometries: list[str], slots: list[int], data: st.DataObject
 ) -> None:
     d = Dispatcher(geometries, max_losses=2, keep=2)
     n_slots: dict[str, int] = {}
