@@ -34,7 +34,7 @@ from typing import Any
 from cad.errors import DataError, check_range
 from fe.cycle.result import CycleResult
 from model.dispatch import Dispatcher
-from model.spec import DesignPoint, ModelSpec, geometry_key
+from model.spec import DesignPoint, ModelSpec, geometry_key, point_label
 
 logger = logging.getLogger(__name__)
 
@@ -314,7 +314,10 @@ class _Drive:
             removed = self.plan.remove_worker(w)
             logger.warning("Dask worker %s left: %d job(s) run again", w, len(removed.requeued))
             for j in removed.given_up:
-                self.handle(j, None, DataError(f"job {j} was lost with {MAX_LOSSES} Dask workers"))
+                where = point_label(*self.jobs[j])
+                self.handle(
+                    j, None, DataError(f"{where}: {MAX_LOSSES} Dask workers left running it")
+                )
         if not self.plan.workers:
             for j in self.plan.abandon():
                 self.handle(j, None, DataError("the Dask cluster has no workers left"))
