@@ -3,9 +3,13 @@
 What ``compare``, ``diagnose``, ``calibrate`` and the paper's validation run through
 ``model.service.ModelService.run_jobs``: a batch of independent (spec, design point) jobs
 (``synth``: ``ModelService.run_summarized``, whose workers also send the kind's summary,
-made on the geometry they hold). ``ClusterRunner`` sends every job of one geometry (``model.spec.geometry_key``) to one
-worker, which keeps a ``ModelService`` of its own and so builds, meshes and factorises
-each geometry once for all the μ, effects and amplitudes run on it. A worker computes the
+made on the geometry they hold). A worker keeps a ``ModelService`` of its own, which
+builds, meshes and factorises a geometry (``model.spec.geometry_key``) once for all the
+μ, effects and amplitudes run on it. ``ClusterRunner`` gives each worker its next job as
+one completes (``model.dispatch.Dispatcher``): one of a geometry it holds while there is
+one; else a geometry no worker holds yet, so distinct geometries spread over the workers;
+else it joins the geometry with the most jobs left per worker holding it, so one geometry
+of many jobs runs on every worker, each setting it up once. A worker computes the
 cycle and sends it back without the condensed operators; the calling process stores it
 (``model.store.ResultStore``) the moment it arrives, so an interrupted run keeps what
 finished and a rerun computes only the rest. The worker runs the same code as the
@@ -22,13 +26,15 @@ import dataclasses
 import logging
 import os
 import threading
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from cad.errors import DataError, check_range
 from fe.cycle.result import CycleResult
-from model.spec import DesignPoint, ModelSpec, geometry_key
+from model.dispatch import Dispatcher
+from model.spec import DesignPoint, ModelSpec, geometry_key, point_label
 
 logger = logging.getLogger(__name__)
 
@@ -36,8 +42,19 @@ _WORKER_SERVICE: dict[str, Any] = {}
 _WORKER_LOCK = threading.Lock()  # a worker with several threads prepares each geometry once
 
 WORKER_GEOMETRIES = 4
-"""Prepared geometries a worker keeps (the least recently used is dropped): jobs of one
-geometry are pinned to one worker, which holds a share of the geometries."""
+"""Prepared geometries a worker keeps (the least recently used is dropped). A worker runs
+the jobs of the geometries it holds first and sets up another only when none of them has
+a job pending; ``model.dispatch.Dispatcher`` keeps the same count, so it never sends a job
+to a worker as if it held a geometry that worker has dropped."""
+
+STEAL_MIN = 2
+"""Pending jobs per worker holding a geometry from which an idle worker sets it up too."""
+
+MAX_LOSSES = 3
+"""A job whose worker left this many times is reported as failed (it may be what kills them)."""
+
+POLL_S = 2.0
+"""How often [s] the runner asks the scheduler which workers joined or left."""
 
 
 @dataclass(frozen=True)
@@ -150,6 +167,7 @@ class ClusterRunner:
         self.cluster = cluster
         self._client: Any = None
         self._local: Any = None
+        self._held: dict[str, list[str]] = {}  # worker → geometries it holds, LRU first
 
     def __enter__(self) -> ClusterRunner:
         return self
@@ -182,6 +200,7 @@ class ClusterRunner:
         if self._local is not None:
             self._local.close()
             self._local = None
+        self._held = {}
 
     def run(
         self,
@@ -190,7 +209,11 @@ class ClusterRunner:
         *,
         summarize: bool = False,
     ) -> None:
-        """Run jobs as Dask tasks, all jobs of one geometry on one worker.
+        """Run jobs as Dask tasks, each on a worker that holds its geometry if it can.
+
+        ``model.dispatch.Dispatcher`` picks each worker's next job (its threads' worth in
+        flight); a job of a worker that leaves runs on another one, and when no worker is
+        left the jobs not run are reported as failed.
 
         Args:
             jobs: (spec, point) pairs, each a distinct result.
@@ -198,33 +221,103 @@ class ClusterRunner:
                 or (job index, None, the error the worker raised), in completion order.
             summarize: What a worker sends back: the cycle (``run_job``), or the cycle
                 and the kind's summary of it (``run_job_summary``).
-        """
-        from dask.distributed import as_completed
 
+        Raises:
+            DataError: If the cluster has no workers.
+        """
         if not jobs:
             return
         client = self.client()
-        workers = sorted(client.scheduler_info()["workers"])
+        workers = client.scheduler_info()["workers"]
         if not workers:
             raise DataError("the Dask cluster has no workers")
-        geometry = [geometry_key(spec, p) for spec, p in jobs]
-        home = {g: workers[i % len(workers)] for i, g in enumerate(dict.fromkeys(geometry))}
-        task = run_job_summary if summarize else run_job
-        futures = {
-            client.submit(
-                task, spec, p, pure=False, workers=[home[g]], allow_other_workers=False
-            ): i
-            for i, ((spec, p), g) in enumerate(zip(jobs, geometry, strict=True))
-        }
+        plan = Dispatcher(
+            [geometry_key(spec, p) for spec, p in jobs],
+            steal_min=STEAL_MIN,
+            keep=WORKER_GEOMETRIES,
+            max_losses=MAX_LOSSES,
+        )
+        for w in sorted(workers):
+            plan.add_worker(w, workers[w].get("nthreads", 1), self._held.get(w, ()))
         try:
-            for future in as_completed(list(futures)):
-                i = futures[future]
+            _Drive(client, plan, jobs, handle, run_job_summary if summarize else run_job).run()
+        finally:  # what each worker holds now, for the next batch (a diagnosis runs many)
+            self._held = {w: plan.holds(w) for w in plan.workers}
+
+
+class _Drive:
+    """One ``ClusterRunner.run``: submit what the plan gives, hand back what completes."""
+
+    def __init__(
+        self,
+        client: Any,
+        plan: Dispatcher,
+        jobs: Sequence[tuple[ModelSpec, DesignPoint]],
+        handle: Callable[[int, Any, BaseException | None], None],
+        task: Callable[..., Any],
+    ) -> None:
+        self.client, self.plan, self.jobs, self.handle, self.task = client, plan, jobs, handle, task
+        self.running: dict[Any, tuple[int, str]] = {}  # future → (job, worker)
+        self.polled = time.monotonic()
+
+    def run(self) -> None:
+        from dask.distributed import wait
+
+        try:
+            self._submit()
+            while not self.plan.finished:
                 try:
-                    result = future.result()
-                except Exception as err:  # the worker's error, re-raised here by Dask
-                    handle(i, None, err)
-                else:
-                    handle(i, result, None)
+                    done, _ = wait(
+                        list(self.running), timeout=POLL_S, return_when="FIRST_COMPLETED"
+                    )
+                except TimeoutError:
+                    done = set()
+                for future in sorted(done, key=lambda f: self.running[f][0]):
+                    self._arrived(future)
+                if not done or time.monotonic() - self.polled > POLL_S:
+                    self._follow_workers()
+                self._submit()
         except BaseException:
-            client.cancel(list(futures))
+            self.client.cancel(list(self.running))
             raise
+
+    def _submit(self) -> None:
+        for w in self.plan.workers:
+            while (j := self.plan.next_job(w)) is not None:
+                spec, p = self.jobs[j]
+                future = self.client.submit(
+                    self.task, spec, p, pure=False, workers=[w], allow_other_workers=False
+                )
+                self.running[future] = (j, w)
+
+    def _arrived(self, future: Any) -> None:
+        j, w = self.running.pop(future)
+        self.plan.done(w, j)
+        try:
+            result = future.result()
+        except Exception as err:  # the worker's error, re-raised here by Dask
+            self.handle(j, None, err)
+        else:
+            self.handle(j, result, None)
+
+    def _follow_workers(self) -> None:
+        """Take the workers that joined; give the jobs of those that left to the others."""
+        self.polled = time.monotonic()
+        now = self.client.scheduler_info()["workers"]
+        for w in sorted(now):
+            self.plan.add_worker(w, now[w].get("nthreads", 1))
+        for w in [w for w in self.plan.workers if w not in now]:
+            lost = [f for f, (_, at) in self.running.items() if at == w]
+            self.client.cancel(lost)
+            for f in lost:
+                del self.running[f]
+            removed = self.plan.remove_worker(w)
+            logger.warning("Dask worker %s left: %d job(s) run again", w, len(removed.requeued))
+            for j in removed.given_up:
+                where = point_label(*self.jobs[j])
+                self.handle(
+                    j, None, DataError(f"{where}: {MAX_LOSSES} Dask workers left running it")
+                )
+        if not self.plan.workers:
+            for j in self.plan.abandon():
+                self.handle(j, None, DataError("the Dask cluster has no workers left"))

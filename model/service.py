@@ -334,7 +334,7 @@ class ModelService:
         """Each job's cycle, or the error that stopped it; the jobs are independent.
 
         A stored result is read back; the others are computed, each distinct key once, on
-        the runner's Dask workers (all jobs of a geometry on one worker) or else here, one
+        the runner's Dask workers (each the geometries it holds first) or else here, one
         geometry after another, and stored the moment they arrive. The specs may differ
         (μ, effects): one prepared geometry serves every spec that shares it.
 

@@ -19,12 +19,14 @@ def _free_port() -> int:
 
 @contextlib.contextmanager
 def external_cluster(
-    folder: Path, workers: int = 2, env: Mapping[str, str] | None = None
+    folder: Path, workers: int = 2, env: Mapping[str, str] | None = None, *, nanny: bool = True
 ) -> Iterator[str]:
     """Start a scheduler and ``workers`` one-thread workers; yield the scheduler's address.
 
     The workers run in ``folder`` (so they find the package installed, not through the cwd)
-    with ``env``; their logs go to ``folder/dask.log``. Every process is stopped on exit.
+    with ``env``, as does the scheduler (it unpickles the tasks); their logs go to
+    ``folder/dask.log``. Without ``nanny`` a worker that dies stays dead. Every process is
+    stopped on exit.
     """
     from distributed import Client
 
@@ -37,11 +39,13 @@ def external_cluster(
                 [dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
                 stdout=logs,
                 stderr=subprocess.STDOUT,
+                env=None if env is None else dict(env),  # it unpickles the tasks too
             )
         ]
         try:
             time.sleep(2.0)
             worker = [dask, "worker", address, "--nthreads", "1", "--host", "127.0.0.1"]
+            worker += [] if nanny else ["--no-nanny"]
             for _ in range(workers):
                 procs.append(
                     subprocess.Popen(

@@ -162,10 +162,11 @@ class ModelEvaluator:
         """Compute the loops ``features`` will need for each (effects, μ), as one batch.
 
         Only with a service that has a runner (``model.cluster.ClusterRunner``): the
-        missing (design point, effects, μ) runs go to the Dask workers together; the
-        loops they return are the ones ``features`` would have computed, kept in the same
-        cache. In process this only counts the batch (``batches``; the runs are made when
-        asked for, as before). A request whose effects are refused,
+        missing (design point, effects, μ) runs go to the Dask workers together, each
+        worker running the geometries it holds first; the loops they return are the ones
+        ``features`` would have computed, kept in the same cache. In process this only
+        counts the batch (``batches``; the runs are made when asked for, as before). A
+        request whose effects are refused,
         or a run that fails, is left to ``features`` (which words the failure).
         ``prefetch_together`` makes one batch of several evaluators' requests.
 

@@ -4,7 +4,7 @@
 (``model.file``) and the measurements (``validation.measurements``), runs
 the cycle once per (clearance, amplitude) — one mesh and one factorisation per
 clearance, reused for every amplitude; with ``--workers``/``--scheduler`` as Dask tasks,
-each clearance on one worker; kept in ``DIR/results``, so a rerun reads them back —
+a worker running the clearances it holds first; kept in ``DIR/results``, so a rerun reads them back —
 compares (``validation.compare``) and writes
 into DIR: ``comparison.json``, the model loops as ``model_loops/*.csv`` and the
 pictures (``loops/<case>.png``, ``error_map.png``, ``residuals.png``,

@@ -8,7 +8,7 @@ model's design variable × 3 amplitudes (``validation.synth.default_design``: cl
 for the general hinge, preloads for the bearing hinge, whose ``--cases`` then reads
 "preload:amp,amp;…" in N). The data come from a finer mesh than
 the model file's (``validation.synth.MESH_RULE``). With ``--workers N`` or ``--scheduler
-ADDRESS`` the cycles run on Dask (each geometry on one worker); the sampling and noise are
+ADDRESS`` the cycles run on Dask (each worker the geometries it holds first); the sampling and noise are
 drawn here, so the set is the same.
 """
 

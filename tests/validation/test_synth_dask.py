@@ -56,6 +56,8 @@ def test_run_summarized_on_a_local_cluster_summarises_where_the_cycle_ran(
 ) -> None:  # type: ignore[no-untyped-def]
     import dataclasses
 
+    from dask.distributed import get_task_stream
+
     from model.cluster import Cluster, ClusterRunner
     from model.file import read_model
     from model.service import ModelService
@@ -68,11 +70,18 @@ def test_run_summarized_on_a_local_cluster_summarises_where_the_cycle_ran(
          DesignPoint(a))
         for f in (40.0, 70.0) for a in (100.0, 300.0)
     ]  # fmt: skip
+    one = dataclasses.replace(spec, hinge=dataclasses.replace(spec.hinge, slip_force_n=55.0))
+    alone = [(one, DesignPoint(a)) for a in (100.0, 150.0, 200.0, 250.0, 300.0, 350.0)]
     here = ModelService().run_summarized(jobs)
     with ClusterRunner(Cluster(workers=2)) as runner:
         service = ModelService(runner=runner)
         there = service.run_summarized(jobs)
-    assert service.n_computed == 4
+        with get_task_stream(runner.client()) as stream:
+            there_alone = service.run_summarized(alone)
+    # one geometry's six jobs ran on both workers (not all on the one it was pinned to)
+    assert len({t["worker"] for t in stream.data if t["key"].startswith("run_job")}) == 2
+    assert [s for _, s in there_alone] == [s for _, s in ModelService().run_summarized(alone)]
+    assert service.n_computed == 4 + 6
     assert [s["slip_force_N"] for _, s in there] == [40.0, 40.0, 70.0, 70.0]
     for (ra, sa), (rb, sb) in zip(here, there, strict=True):
         assert sa == sb
