@@ -159,7 +159,9 @@ class Search:
         if predict is None:
             return best[1], best[2]
         lo, hi = math.log10(float(self.grid[0])), math.log10(float(self.grid[-1]))
-        for p in 10.0 ** np.linspace(lo, hi, SCAN_POINTS):
+        p_lo, p_hi = float(self.grid[0]), float(self.grid[-1])
+        # 10**log10(p) may leave the range by an ulp: a true-model run there would be refused
+        for p in np.clip(10.0 ** np.linspace(lo, hi, SCAN_POINTS), p_lo, p_hi):
             fp = predict(float(p))
             c = cost(fp, rows)
             if c < best[0]:
@@ -176,7 +178,7 @@ class Search:
                 options={"xatol": 1e-5},
             )
             if float(res.fun) < best[0]:
-                p = float(10.0**res.x)
+                p = min(max(float(10.0**res.x), p_lo), p_hi)
                 best = (float(res.fun), p, predict(p))
         return best[1], best[2]
 

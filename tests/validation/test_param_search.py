@@ -168,3 +168,24 @@ def test_features_linear_in_p_are_found_in_one_run(slope, p_true):
     assert s.rounds == 1
     assert s.error_sigma < 1e-6
     assert abs(math.log10(p / p_true)) <= 0.5 * 3.0 / 300 + 1e-9  # the scan's resolution
+
+
+def test_a_fit_at_the_upper_bound_never_leaves_the_range():
+    """10**log10(hi) can exceed hi by an ulp; the effect's range check would refuse that run."""
+    hi = 2000.0  # log10 round trip: 10**log10(2000) = 2000.0000000000002
+    assert 10.0 ** math.log10(hi) > hi
+    values = grid(hi, 5, 2.0)
+    lin = lambda p: np.outer(AMPS, [1.0, 0.5, 0.2]) * (1.0 + p / 1000.0)  # noqa: E731
+    data = lin(5000.0)  # beyond the range: the fit goes to the bound
+    sigma = 1e-3 * np.abs(data)
+    s = Search("c", values, np.array([lin(p) for p in values]), lin(0.0))
+    seen: list[float] = []
+
+    def run(batch):
+        seen.extend(p for _, p in batch)
+        return [(lin(p), None) for _, p in batch]
+
+    refine([s], run, cost_for(data, sigma), sigma, np.ones_like(data, bool), 4)
+    p, _ = s.scan(cost_for(data, sigma))
+    assert p <= hi
+    assert all(q <= hi for q in seen)
