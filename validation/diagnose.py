@@ -204,7 +204,7 @@ class Diagnosis:
             lines.append(
                 f"  {c.name:<22} {c.param} = {c.value:.3g} {c.unit}: χ² {c.chi2:.1f} "
                 f"(Δχ² {c.delta_chi2:.1f}, p {c.p_value:.2g}; held-out {c.heldout_chi2_base:.1f} → "
-                f"{c.heldout_chi2:.1f}; BIC {c.bic:.1f}) {flags}"
+                f"{c.heldout_chi2:.1f}; BIC {c.bic:.1f}{_search_words(c)}) {flags}"
             )
         for n, why in self.skipped.items():
             lines.append(f"  {n:<22} not tried: {why}")
@@ -213,6 +213,13 @@ class Diagnosis:
         if self.signatures is not None:
             lines.append(self.signatures.text())
         return "\n".join(lines)
+
+
+def _search_words(c: CandidateFit) -> str:
+    """The refinement in words: model runs and the interpolation error at the fit."""
+    if c.refine_runs == 0 or not np.isfinite(c.error_sigma):
+        return ""
+    return f"; {c.refine_runs} run(s), interpolation off by {c.error_sigma:.2g}σ"
 
 
 def _separating_test(a: CandidateFit, b: CandidateFit, meas: MeasuredFeatures) -> str:

@@ -106,5 +106,7 @@ def run(args: argparse.Namespace) -> int:
         print(dumps(result.to_dict()))
     else:
         print(result.text())
-        print(f"{result.stats['n_cycles']:.0f} cycles, {result.stats['wall_s']:.0f} s")
+        coarse = result.stats.get("screen_cycles", 0)
+        more = f" (+{coarse:.0f} on the coarse mesh for the grids)" if coarse else ""
+        print(f"{result.stats['n_cycles']:.0f} cycles{more}, {result.stats['wall_s']:.0f} s")
     return 0
