@@ -204,6 +204,29 @@ def test_synth_adapts_a_data_mesh_that_distorts_and_says_so(tmp_path):
     assert (out / "loops" / "dr0.3mm_F200N.csv").is_file()
 
 
+class _PathService:
+    """Stands in for ``model.service.ModelService``: one short stage path per point, no FE.
+
+    The atomic write does not depend on what the cycle was (the FE path of synthesize is
+    checked above on the coarse model); this keeps the failure test a fraction of a second
+    instead of two finer-mesh cycles.
+    """
+
+    def run_summarized(self, pairs):
+        out = []
+        for _, point in pairs:
+            a = point.amplitude_n
+            incs = (
+                _increment(0, a, 1e-3, 1),
+                _increment(1, 0.0, 2e-4, 1),
+                _increment(1, -a, -1e-3, -1),
+                _increment(2, 0.0, -2e-4, -1),
+                _increment(2, a, 1e-3, 1),
+            )
+            out.append((CycleResult(CycleSettings(amplitude_n=a), 0.0, incs, 0.0, (), {}), {}))
+        return out
+
+
 def test_a_failing_synth_leaves_no_partial_set(tmp_path, monkeypatch):
     import validation.synth as synth
 
@@ -212,16 +235,18 @@ def test_a_failing_synth_leaves_no_partial_set(tmp_path, monkeypatch):
     def fail_second(path, m):  # the first case's loop file is already written
         calls.append(path)
         if len(calls) == 2:
+            assert path.parent.parent.name.endswith(".partial")  # beside out, not in it
+            assert (path.parent / "dr0mm_F100N.csv").is_file()  # the first case is on disk
             raise synth.ParameterError("refused by the test")
         return real(path, m)
 
     real = synth.write_loop_csv
     monkeypatch.setattr(synth, "write_loop_csv", fail_second)
     out = tmp_path / "set"
+    cases = synth.design_cases([(0.0, (100.0, 200.0))])
     with pytest.raises(synth.ParameterError, match="refused by the test"):
-        synth.synthesize(
-            _coarse_spec(), {}, synth.design_cases([(0.0, (100.0, 200.0))]), SynthSettings(), out
-        )
+        synth.synthesize(_coarse_spec(), {}, cases, SynthSettings(), out, _PathService())
+    assert len(calls) == 2
     assert not out.exists()
     assert list(tmp_path.iterdir()) == []
     (tmp_path / "mine").mkdir()
@@ -233,4 +258,6 @@ def test_a_failing_synth_leaves_no_partial_set(tmp_path, monkeypatch):
             synth.design_cases([(0.0, (100.0,))]),
             SynthSettings(),
             tmp_path / "mine",
+            _PathService(),
         )
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "keep"
