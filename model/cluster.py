@@ -106,7 +106,8 @@ def local_cluster(workers: int) -> Any:
     """A private ``LocalCluster`` of ``workers`` one-thread processes (Dask's logs quietened).
 
     Each worker gets its share of the cores for its large LUs (``HINGELAB_LU_THREADS``), so
-    two workers never take a second thread each on two cores.
+    two workers never take a second thread each on two cores. Its dashboard listens on a
+    free port (Dask's default 8787 is taken when two commands or test processes run at once).
     """
     from dask.distributed import LocalCluster
 
@@ -115,7 +116,7 @@ def local_cluster(workers: int) -> Any:
         n_workers=workers,
         threads_per_worker=1,
         processes=True,
-        dashboard_address=None,
+        dashboard_address=":0",  # None still binds 8787: a second cluster there failed
         silence_logs=logging.ERROR,
         env={"HINGELAB_LU_THREADS": str(max(1, (os.cpu_count() or 1) // workers))},
     )

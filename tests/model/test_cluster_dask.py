@@ -98,3 +98,21 @@ def test_the_jobs_left_fail_when_the_last_worker_dies(jenkins, tmp_path: Path, m
     for _, err in list(got.values())[2:]:
         assert isinstance(err, DataError)
         assert "no workers left" in str(err)
+
+
+@pytest.mark.slow
+def test_two_local_clusters_run_side_by_side():
+    """Two commands (or two test processes) each with a private cluster: no fixed port."""
+    from model.cluster import local_cluster
+
+    a = local_cluster(1)
+    try:
+        b = local_cluster(1)
+        try:
+            ports = {c.scheduler.http_server.port for c in (a, b)}
+            assert len(ports) == 2
+            assert 8787 not in ports
+        finally:
+            b.close()
+    finally:
+        a.close()
