@@ -17,11 +17,12 @@ demo: $(STAMP)
 	$(BIN)/hingelab cycle --out $(OUT)
 
 # pytest exits 5 when it collected no test: that must fail, not pass silently.
+# Two pytest workers (pytest-xdist): the suite is one core's work, the machine has two.
 test: $(STAMP)
-	$(BIN)/python -m pytest -q; rc=$$?; if [ $$rc -eq 5 ]; then echo "no tests ran" >&2; exit 1; fi; exit $$rc
+	$(BIN)/python -m pytest -q -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo "no tests ran" >&2; exit 1; fi; exit $$rc
 
 test-all: $(STAMP)
-	$(BIN)/python -m pytest -q -m "slow or not slow"
+	$(BIN)/python -m pytest -q -n 2 -m "slow or not slow"
 
 lint: $(STAMP)
 	$(BIN)/ruff check cad mesh fe model rsm studies validation tests
