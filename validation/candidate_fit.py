@@ -291,7 +291,10 @@ class CandidateFit:
         features: Model features at the fit, shape (n_points, 3).
         model_effects: The effects of that fit: the candidate and the model's own
             post-only effects as re-tuned with it.
-        refine_runs: True-model points the refinement ran (``validation.param_search``).
+        refine_runs: True-model points the refinement ran (``validation.param_search``),
+            the polish's included.
+        polish_runs: Of those, the true-model polish's (run when the stated error exceeded
+            1σ).
         error_sigma: The search's stated error: the largest |interpolated − true|/σ of an
             informative feature at its last refinement point (NaN: none run).
     """
@@ -314,6 +317,7 @@ class CandidateFit:
     features: FloatArray = field(repr=False, compare=False)
     model_effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     refine_runs: int = 0
+    polish_runs: int = 0
     error_sigma: float = math.nan
 
     @property

@@ -217,6 +217,7 @@ def _judged(
         bic=c2 + math.log(n),
         features=fitted,
         model_effects=model_effects,
-        refine_runs=search.rounds,
+        refine_runs=search.rounds + search.polish_runs,
+        polish_runs=search.polish_runs,
         error_sigma=search.error_sigma,
     )

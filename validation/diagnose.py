@@ -219,7 +219,8 @@ def _search_words(c: CandidateFit) -> str:
     """The refinement in words: model runs and the interpolation error at the fit."""
     if c.refine_runs == 0 or not np.isfinite(c.error_sigma):
         return ""
-    return f"; {c.refine_runs} run(s), interpolation off by {c.error_sigma:.2g}σ"
+    polish = f", {c.polish_runs} of them a true-model polish" if c.polish_runs else ""
+    return f"; {c.refine_runs} run(s){polish}, interpolation off by {c.error_sigma:.2g}σ"
 
 
 def _separating_test(a: CandidateFit, b: CandidateFit, meas: MeasuredFeatures) -> str:

@@ -23,7 +23,10 @@ where the fit lands:
    minimum is a point already run, when its interpolant prefers the effect off, or after
    ``max_rounds`` runs. Its **stated error** is the largest
    |interpolated − true| / σ over the informative features at the last point run, before
-   that point joined the interpolant.
+   that point joined the interpolant. **The check**: a search whose stated error exceeds
+   ``error_max`` (1σ) does not trust its interpolant near the fit and is polished on the
+   true model (bounded Brent within ``POLISH_DECADES`` of its best point, the search this
+   one replaced), unless its best point is the baseline or a grid end.
 4. **The value** (``Search.best``) is the true-model point of least χ² (grid nodes count
    when the grid ran on the model itself), or 0 — the effect off, the baseline — when none
    beats it: every χ² a verdict uses is the true model's.
@@ -45,6 +48,9 @@ Cost = Callable[[FloatArray, "Rows | None"], float]
 
 EXTRAPOLATE_DECADES = 0.5
 """How far past the last refinement point the screen correction keeps its slope [decades]."""
+
+POLISH_DECADES = 0.25
+"""Half-width of the true-model polish around the best point [decades of p]."""
 
 SCAN_POINTS = 301
 """Log-spaced parameter values the interpolant is scanned at, between the grid's ends."""
@@ -77,7 +83,8 @@ class Search:
             the refinement points.
         settled: No more rounds.
         error_sigma: The stated error at the last point run (NaN before any).
-        rounds: True-model points run.
+        rounds: True-model points run by the rounds.
+        polish_runs: True-model points run by the polish (``_polish``).
     """
 
     name: str
@@ -89,6 +96,7 @@ class Search:
     settled: bool = False
     error_sigma: float = math.nan
     rounds: int = 0
+    polish_runs: int = 0
 
     @property
     def screened(self) -> bool:
@@ -202,15 +210,20 @@ def stated_error(predicted: FloatArray, true: FloatArray, sigma: FloatArray, ok:
     return float(np.max(e)) if e.size else 0.0
 
 
+Run = Callable[[Sequence[tuple["Search", float]]], Sequence[tuple[FloatArray, FloatArray | None]]]
+"""(search, p) pairs → (the model's features, the screen's or None) for each, in order."""
+
+
 def refine(
     searches: Sequence[Search],
-    run: Callable[[Sequence[tuple[Search, float]]], Sequence[tuple[FloatArray, FloatArray | None]]],
+    run: Run,
     cost: Cost,
     sigma: FloatArray,
     informative: Rows,
     max_rounds: int,
     chi2_tol: float = 0.1,
     xatol: float = 0.002,
+    error_max: float = 1.0,
 ) -> None:
     """Run the refinement rounds (module docstring, step 3) until every search is settled.
 
@@ -227,6 +240,9 @@ def refine(
             parameter's 1σ interval).
         xatol: Or when the interpolant's minimum is within this of a point already run
             [decades of p].
+        error_max: A search whose stated error exceeds this [σ] is polished on the true
+            model afterwards (``_polish``: bounded Brent, at most ``max_rounds`` runs, one
+            candidate after another).
     """
     n_obs = int(np.count_nonzero(informative))
     proposal: dict[int, float] = {}
@@ -260,3 +276,39 @@ def refine(
             else:
                 s.settled = True
         proposal = nxt
+    for s in searches:
+        if s.error_sigma > error_max:  # NaN (no run) and a trusted interpolant: done
+            _polish(s, run, cost, max_rounds)
+
+
+def _polish(s: Search, run: Run, cost: Cost, max_iter: int) -> None:
+    """Bounded Brent on the true model within ``POLISH_DECADES`` of the best point run.
+
+    For a search whose interpolant missed the true model at its last point by more than
+    the ``refine`` threshold: the fit is then not where the interpolant says. Nothing to
+    polish at p = 0 or at an end of the grid (a fit at its bound stays there).
+    """
+    from scipy import optimize
+
+    _, p_best, _ = s.best(cost)
+    lo, hi = math.log10(float(s.grid[0])), math.log10(float(s.grid[-1]))
+    if p_best == 0.0:
+        return
+    u0 = math.log10(p_best)
+    if u0 <= lo + 1e-9 or u0 >= hi - 1e-9:
+        return
+    p_lo, p_hi = float(s.grid[0]), float(s.grid[-1])
+
+    def at(u: float) -> float:
+        p = min(max(float(10.0**u), p_lo), p_hi)
+        if p not in s.runs:
+            s.runs[p] = run([(s, p)])[0]
+            s.polish_runs += 1
+        return cost(s.runs[p][0], None)
+
+    optimize.minimize_scalar(
+        at,
+        bounds=(max(lo, u0 - POLISH_DECADES), min(hi, u0 + POLISH_DECADES)),
+        method="bounded",
+        options={"maxiter": max_iter, "xatol": 0.01},
+    )

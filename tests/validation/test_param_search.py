@@ -128,9 +128,59 @@ def test_every_round_runs_all_unsettled_candidates_as_one_batch():
 
 def test_the_round_limit_holds():
     s, calls, _ = search_for(3.3e-6, 0.3, rounds=1)
-    assert calls == [1]
+    assert calls[0] == 1
     assert s.rounds == 1
     assert s.settled
+    # the one run missed the interpolant by > 1σ: the polish ran, its runs one at a time
+    assert s.error_sigma > 1.0
+    assert s.polish_runs >= 1
+    assert calls[1:] == [1] * s.polish_runs
+
+
+def _wavy_screen(p: float) -> np.ndarray:
+    """A screen 40 % off in a way that oscillates with log10 p: a correction fitted at a few
+    points is wrong between them."""
+    return model(p) * (1.0 + 0.4 * np.sin(4.0 * math.log10(max(p, 1e-12))))
+
+
+def test_an_interpolant_off_by_more_than_1_sigma_is_polished_on_the_true_model():
+    data = model(3.3e-6)
+    sigma = 0.01 * np.abs(data)
+    cost = cost_for(data, sigma)
+    ok = np.ones_like(data, dtype=bool)
+    values = grid(1e-4, 7, 3.0)
+    found = {}
+    for error_max in (1.0, math.inf):
+        s = Search(
+            "c",
+            values,
+            np.array([_wavy_screen(p) for p in values]),
+            model(0.0),
+            _wavy_screen(0.0),
+        )
+        refine(
+            [s],
+            lambda b: [(model(p), _wavy_screen(p)) for _, p in b],
+            cost,
+            sigma,
+            ok,
+            6,
+            error_max=error_max,
+        )
+        found[error_max] = (s.best(cost)[0], s.polish_runs, s.error_sigma)
+    c_trusted, polish_off, err = found[math.inf]
+    c_polished, polish_on, _ = found[1.0]
+    assert err > 1.0  # the check fails here...
+    assert polish_off == 0
+    assert c_trusted > 100.0  # ...and trusting the interpolant leaves a bad fit
+    assert 1 <= polish_on <= 6
+    assert c_polished < 1.0  # the polish finds the true minimum (χ² 0 at the truth)
+
+
+def test_a_trusted_interpolant_is_not_polished():
+    s, _, _ = search_for(3.3e-6, 0.1)
+    assert s.error_sigma <= 1.0
+    assert s.polish_runs == 0
 
 
 def test_stated_error_counts_only_informative_features():
