@@ -41,6 +41,17 @@ logger = logging.getLogger(__name__)
 _WORKER_SERVICE: dict[str, Any] = {}
 _WORKER_LOCK = threading.Lock()  # a worker with several threads prepares each geometry once
 
+THREAD_VARIABLES = (
+    "HINGELAB_LU_THREADS",
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+)
+"""Thread counts a local worker is started with (its share of the cores). Without the BLAS
+ones, OpenBLAS started a thread per core in every worker for the steps outside the cycle's
+own thread limit (assembly, condensation, loop post-processing): two workers on two cores
+ran each task 1.5× slower than one process did (benchmarks/bench_diagnose_workers.txt)."""
+
 WORKER_GEOMETRIES = 4
 """Prepared geometries a worker keeps (the least recently used is dropped). A worker runs
 the jobs of the geometries it holds first and sets up another only when none of them has
@@ -105,13 +116,15 @@ def connect(address: str) -> Any:
 def local_cluster(workers: int) -> Any:
     """A private ``LocalCluster`` of ``workers`` one-thread processes (Dask's logs quietened).
 
-    Each worker gets its share of the cores for its large LUs (``HINGELAB_LU_THREADS``), so
-    two workers never take a second thread each on two cores. Its dashboard listens on a
+    Each worker gets its share of the cores for its large LUs (``HINGELAB_LU_THREADS``) and
+    for every other BLAS/OpenMP call (``THREAD_VARIABLES``), so two workers never take a
+    second thread each on two cores. Its dashboard listens on a
     free port (Dask's default 8787 is taken when two commands or test processes run at once).
     """
     from dask.distributed import LocalCluster
 
     quiet_dask()
+    share = str(max(1, (os.cpu_count() or 1) // workers))
     return LocalCluster(
         n_workers=workers,
         threads_per_worker=1,
@@ -121,7 +134,9 @@ def local_cluster(workers: int) -> Any:
         # (a non-converged candidate value is an expected outcome): the worker's own
         # "Compute Failed" traceback on stderr would only alarm the user
         silence_logs=logging.CRITICAL,
-        env={"HINGELAB_LU_THREADS": str(max(1, (os.cpu_count() or 1) // workers))},
+        # Dask's statistical profiler samples the task's stack every 10 ms: 7 % of a task here
+        env={name: share for name in THREAD_VARIABLES}
+        | {"DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False"},
     )
 
 
