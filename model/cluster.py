@@ -47,10 +47,12 @@ THREAD_VARIABLES = (
     "OPENBLAS_NUM_THREADS",
     "MKL_NUM_THREADS",
 )
-"""Thread counts a local worker is started with (its share of the cores). Without the BLAS
-ones, OpenBLAS started a thread per core in every worker for the steps outside the cycle's
-own thread limit (assembly, condensation, loop post-processing): two workers on two cores
-ran each task 1.5× slower than one process did (benchmarks/bench_diagnose_workers.txt)."""
+"""Thread counts a local worker is started with (its share of the cores): without the BLAS
+ones, OpenBLAS would start a thread per core in every worker for the steps outside the
+cycle's own thread limit (assembly, condensation, loop post-processing). (Measured on the
+6-case diagnosis: no change in time; the workers' slowdown was the allocator, see
+``local_cluster``.)"""
+
 
 WORKER_GEOMETRIES = 4
 """Prepared geometries a worker keeps (the least recently used is dropped). A worker runs
