@@ -50,9 +50,6 @@ def _retuned(
     effect fitted alone in an earlier round has absorbed part of the next one, and a
     candidate judged against that frozen value would look weaker than it is.
     """
-    from fe.effects.registry import REGISTRY
-    from validation.evaluate import is_post_only
-
     own = {n: dict(p) for n, p in evaluator.spec.effects.items() if is_post_only(n)}
     extra = {n: dict(p) for n, p in effects.items()}
     for n in own:
