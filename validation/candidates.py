@@ -30,7 +30,7 @@ from validation.candidate_fit import (
 from validation.evaluate import ModelEvaluator, is_post_only, prefetch_together
 from validation.param_search import Cost, Search, refine
 
-__all__ = ["fit_candidate", "fit_candidates"]
+__all__ = ["fit_candidate", "fit_candidates", "prefetch_grids"]
 
 
 def _retuned_features(
@@ -64,6 +64,36 @@ def _retuned(
             )
             own[n][par.name] = float(res.x)
     return {**own, **extra}
+
+
+def _screened(names: Sequence[str], screen: ModelEvaluator | None) -> dict[str, bool]:
+    """Candidate → whether its grid runs on the screen (a post-only one costs no cycle anyway)."""
+    return {n: screen is not None and not is_post_only(n) for n in names}
+
+
+def prefetch_grids(
+    evaluator: ModelEvaluator,
+    names: Sequence[str],
+    settings: DiagnoseSettings,
+    screen: ModelEvaluator | None = None,
+    *,
+    baseline: bool = False,
+) -> None:
+    """Every candidate's grid (and the screen's baseline) as one batch of runs.
+
+    With ``baseline`` the model's own baseline joins the batch, so a cluster never waits
+    for the baseline's last cycle before the grids start (``diagnose``).
+    """
+    screened = _screened(names, screen)
+    grids: list[tuple[Mapping[str, Mapping[str, float]], float | None]] = (
+        [({}, None)] if baseline else []
+    )
+    grids += [(e, None) for n in names if not screened[n] for e in grid_effects(n, settings)]
+    together = [(evaluator, grids)]
+    if screen is not None and any(screened.values()):  # its baseline too, in the same batch
+        shots = [(e, None) for n in names if screened[n] for e in grid_effects(n, settings)]
+        together.append((screen, [({}, None), *shots]))
+    prefetch_together(together)
 
 
 def fit_candidate(
@@ -113,14 +143,8 @@ def fit_candidates(
         (fits in the order of ``names``, candidate → the error of a user's effect that failed).
     """
     failed: dict[str, EffectError] = {}
-    # a post-only candidate costs no cycle on the model itself: no screen for it
-    screened = {n: screen is not None and not is_post_only(n) for n in names}
-    grids = [(e, None) for n in names if not screened[n] for e in grid_effects(n, settings)]
-    together = [(evaluator, grids)]
-    if screen is not None and any(screened.values()):  # its baseline too, in the same batch
-        shots = [(e, None) for n in names if screened[n] for e in grid_effects(n, settings)]
-        together.append((screen, [({}, None), *shots]))
-    prefetch_together(together)
+    screened = _screened(names, screen)
+    prefetch_grids(evaluator, names, settings, screen)
     base_screen = screen.features({}) if screen is not None and any(screened.values()) else None
     searches = []
     for name in names:

@@ -76,7 +76,7 @@ from validation.candidate_fit import (
     measured_features,
     residuals,
 )
-from validation.candidates import fit_candidates
+from validation.candidates import fit_candidates, prefetch_grids
 from validation.evaluate import ModelEvaluator
 from validation.features import FEATURES
 from validation.measurements import MeasurementSet
@@ -391,10 +391,6 @@ def diagnose(
     ev = evaluator or ModelEvaluator(
         spec, meas.points, s.increments_per_stage, s.clearance_increments, service, meas.clocks
     )
-    base = ev.features({})
-    c0 = chi2(base, meas)
-    n = meas.n_obs
-    limit = float(stats.chi2.ppf(1.0 - s.alpha, n))
     skipped: dict[str, str] = {}
     names = []
     for name in REGISTRY:
@@ -424,6 +420,11 @@ def diagnose(
             ev.service,
             meas.clocks,
         )
+    prefetch_grids(ev, names, s, screen, baseline=True)  # on a cluster: one batch
+    base = ev.features({})
+    c0 = chi2(base, meas)
+    n = meas.n_obs
+    limit = float(stats.chi2.ppf(1.0 - s.alpha, n))
     fits, failed = fit_candidates(ev, names, meas, base, len(names), s, screen)
     for name, error in failed.items():  # a user's effect that fails: the others still ran
         skipped[name] = f"failed: {error}"
