@@ -123,24 +123,19 @@ class ModelEvaluator:
         mu = self.cycle.mu if mu is None else float(mu)
         key = (point, _key(solve_effects), mu)
         if key not in self._loops:
-            from validation.synth import machine_path
-
             spec, design = self._job(point, solve_effects, mu)
             t0 = time.perf_counter()
             setup0 = self.service.setup_s
+            res: Any
             try:
                 res = self.service.run_point(spec, design)
-                # the free play crossed at zero force, as the grips see it (no chord area)
-                self._loops[key] = machine_path(res)
             except EffectError:  # a broken user effect: its candidate fails, named
                 raise
             except HingelabError as err:  # a refused or non-converged effect value
-                logger.info("cycle failed at %s with %s: %s", point, dict(solve_effects), err)
-                self._loops[key] = None
+                res = err
             setup = self.service.setup_s - setup0
             self.setup_s += setup
-            self.n_cycles += 1
-            self.cycle_s += time.perf_counter() - t0 - setup
+            self._accept(key, res, time.perf_counter() - t0 - setup)
         return self._loops[key]
 
     def _job(
@@ -196,7 +191,12 @@ class ModelEvaluator:
         return wanted
 
     def _accept(self, key: tuple[Any, ...], res: Any, seconds: float) -> None:
-        """Keep what a worker returned for run ``key`` (a cycle, or the error it raised)."""
+        """Keep the outcome of run ``key``: a cycle, or the error it raised (a worker's or ours).
+
+        A cycle is kept as its machine path (the free play crossed at zero force, as the
+        grips see it: no chord area); a refused or non-converged run as None (logged); a
+        user effect's error is left to ``features``, which names it.
+        """
         from validation.synth import machine_path
 
         if not isinstance(res, BaseException):
