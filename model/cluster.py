@@ -148,19 +148,23 @@ def local_cluster(workers: int) -> Any:
         )
 
 
+def _worker_service() -> Any:
+    """This worker's ``ModelService``, made on its first job (call under ``_WORKER_LOCK``)."""
+    if "service" not in _WORKER_SERVICE:
+        from model.service import ModelService
+
+        _WORKER_SERVICE["service"] = ModelService(max_geometries=WORKER_GEOMETRIES)
+    return _WORKER_SERVICE["service"]
+
+
 def run_job(spec: ModelSpec, point: DesignPoint) -> CycleResult:
     """Run one point on a worker (its geometry reused across the worker's jobs).
 
     Returns:
         The cycle without its condensed configurations (they stay with the geometry).
     """
-    from model.service import ModelService
-
     with _WORKER_LOCK:
-        service = _WORKER_SERVICE.setdefault(
-            "service", ModelService(max_geometries=WORKER_GEOMETRIES)
-        )
-        result: CycleResult = service.run_point(spec, point)
+        result: CycleResult = _worker_service().run_point(spec, point)
     return dataclasses.replace(result, configs={})
 
 
@@ -172,12 +176,8 @@ def run_job_summary(spec: ModelSpec, point: DesignPoint) -> tuple[CycleResult, d
     Returns:
         The cycle without its condensed configurations, and the kind's summary of it.
     """
-    from model.service import ModelService
-
     with _WORKER_LOCK:
-        service = _WORKER_SERVICE.setdefault(
-            "service", ModelService(max_geometries=WORKER_GEOMETRIES)
-        )
+        service = _worker_service()
         result = service.run_point(spec, point)
         summary = service.summary(spec, point, result)
     return dataclasses.replace(result, configs={}), summary
