@@ -63,6 +63,23 @@ to a worker as if it held a geometry that worker has dropped."""
 STEAL_MIN = 2
 """Pending jobs per worker holding a geometry from which an idle worker sets it up too."""
 
+WORKER_CONFIG: dict[str, Any] = {
+    # Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536 (memory handed back to
+    # the OS at once); setting it also stops glibc from raising its mmap threshold, so every
+    # array above 128 kB was a fresh mmap, zeroed page by page: a cycle took 1.4-1.6x its
+    # time in this process. The workers get glibc's default allocator behaviour.
+    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+    # Dask's statistical profiler samples the task thread's stack every 10 ms (measured with
+    # py-spy: its callbacks were the worker's main thread's largest item). A nanny hands its
+    # configuration to the worker it spawns; an environment variable set through ``env``
+    # reaches the worker after its configuration is read (it left the profiler on).
+    "distributed.worker.profile.enabled": False,
+}
+"""Dask configuration a private ``LocalCluster``'s workers start with (``local_cluster``)."""
+
+AHEAD = 1
+"""Jobs queued on a worker behind those it runs, while many are pending (``Dispatcher``)."""
+
 MAX_LOSSES = 3
 """A job whose worker left this many times is reported as failed (it may be what kills them)."""
 
@@ -128,11 +145,7 @@ def local_cluster(workers: int) -> Any:
 
     quiet_dask()
     share = str(max(1, (os.cpu_count() or 1) // workers))
-    # Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536 (memory handed back to
-    # the OS at once); setting it also stops glibc from raising its mmap threshold, so every
-    # array above 128 kB was a fresh mmap, zeroed page by page: a cycle took 1.4-1.6x its
-    # time in this process. The workers get glibc's default allocator behaviour.
-    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+    with dask.config.set(WORKER_CONFIG):
         return LocalCluster(
             n_workers=workers,
             threads_per_worker=1,
@@ -142,9 +155,7 @@ def local_cluster(workers: int) -> Any:
             # (a non-converged candidate value is an expected outcome): the worker's own
             # "Compute Failed" traceback on stderr would only alarm the user
             silence_logs=logging.CRITICAL,
-            # Dask's statistical profiler samples the task's stack every 10 ms: 7 % of a task here
-            env={name: share for name in THREAD_VARIABLES}
-            | {"DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False"},
+            env={name: share for name in THREAD_VARIABLES},
         )
 
 
@@ -263,6 +274,7 @@ class ClusterRunner:
             steal_min=STEAL_MIN,
             keep=WORKER_GEOMETRIES,
             max_losses=MAX_LOSSES,
+            ahead=AHEAD,
         )
         for w in sorted(workers):
             plan.add_worker(w, workers[w].get("nthreads", 1), self._held.get(w, ()))

@@ -118,16 +118,21 @@ def test_two_local_clusters_run_side_by_side():
         a.close()
 
 
-def _worker_environment() -> dict[str, str | None]:
+def _worker_environment() -> dict[str, object]:
     import os
 
+    from distributed import get_worker
+
     names = ("MALLOC_TRIM_THRESHOLD_", "OPENBLAS_NUM_THREADS", "HINGELAB_LU_THREADS")
-    return {n: os.environ.get(n) for n in names}
+    env: dict[str, object] = {n: os.environ.get(n) for n in names}
+    return env | {"callbacks": sorted(get_worker().periodic_callbacks)}
 
 
 def test_local_workers_keep_glibcs_allocator_and_their_share_of_threads():
     """Dask's nanny sets MALLOC_TRIM_THRESHOLD_, which froze glibc's mmap threshold: every
-    large array a fresh zeroed mmap, a cycle 1.6x slower as a task (bench_worker_overhead)."""
+    large array a fresh zeroed mmap, a cycle 1.6x slower as a task (bench_worker_overhead).
+    Dask's profiler sampled every task's stack every 10 ms: the workers start without it
+    (an environment variable for it was set too late and left it on)."""
     from dask.distributed import Client
 
     from model.cluster import local_cluster
@@ -137,3 +142,5 @@ def test_local_workers_keep_glibcs_allocator_and_their_share_of_threads():
     assert env["MALLOC_TRIM_THRESHOLD_"] is None
     share = str(max(1, (os.cpu_count() or 1) // 2))  # the cores over the 2 workers
     assert env["OPENBLAS_NUM_THREADS"] == env["HINGELAB_LU_THREADS"] == share
+    assert "heartbeat" in env["callbacks"]  # the names are those of this Dask version
+    assert "profile" not in env["callbacks"]

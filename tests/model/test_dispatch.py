@@ -152,6 +152,23 @@ def test_no_more_jobs_in_flight_than_slots() -> None:
     assert d.in_flight("a") == {1, 2}
 
 
+def test_a_job_waits_queued_behind_the_running_one_only_while_many_are_pending() -> None:
+    d = Dispatcher(["g"] * 9, ahead=1)
+    d.add_worker("a", 1)
+    d.add_worker("b", 1)
+    assert [d.next_job("a") for _ in range(3)] == [0, 1, None]  # 8, then 7 pending > 2 × 2
+    assert [d.next_job("b") for _ in range(3)] == [2, 3, None]
+    d.done("a", 0)
+    assert (d.next_job("a"), d.next_job("a")) == (4, None)  # 5 pending > 4: one queued ahead
+    d.done("a", 1)
+    assert d.next_job("a") is None  # 4 pending, not > 4: job 4 runs, none waits behind it
+    d.done("a", 4)
+    assert (d.next_job("a"), d.next_job("a")) == (5, None)
+    assert d.in_flight("a") == {5}
+    with pytest.raises(ParameterError, match="ahead"):
+        Dispatcher(["g"], ahead=-1)
+
+
 def test_a_removed_workers_jobs_are_given_back_and_given_up_after_max_losses() -> None:
     d = Dispatcher(["g"] * 4, max_losses=2)
     d.add_worker("a", 2)
