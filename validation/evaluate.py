@@ -103,7 +103,10 @@ class ModelEvaluator:
         self._loops: dict[tuple[Any, ...], tuple[FloatArray, FloatArray] | None] = {}
         self.n_cycles = 0
         self.batches: list[int] = []
-        """Runs not yet made per ``prefetch`` batch, in order: the widths of the task graph."""
+        """Runs not yet made per ``prefetch`` batch, in order: the widths of the task graph.
+        In process a run is counted in the first batch that asks for it (it is made later,
+        when ``features`` needs it), as a cluster would have run it there."""
+        self._announced: set[tuple[Any, ...]] = set()  # in process: runs counted in a batch
         self.cycle_s = 0.0
         self.setup_s = 0.0
 
@@ -296,10 +299,15 @@ def prefetch_together(
             by_service.setdefault(id(ev.service), []).append((ev, key, job))
             services[id(ev.service)] = ev.service
     for sid, jobs in by_service.items():
+        service = services[sid]
+        lazy = getattr(service, "runner", None) is None
+        if lazy:  # a run announced by an earlier batch and not made yet is not counted again
+            jobs = [(ev, key, job) for ev, key, job in jobs if key not in ev._announced]
+            for ev, key, _ in jobs:
+                ev._announced.add(key)
         for ev in {id(e): e for e, _, _ in jobs}.values():
             ev.batches.append(len(jobs))
-        service = services[sid]
-        if getattr(service, "runner", None) is None:
+        if lazy:
             continue  # in process: each run is made when ``features`` asks for it
         t0 = time.perf_counter()
         outcomes = service.run_jobs([job for _, _, job in jobs])

@@ -87,3 +87,36 @@ def test_screened_and_plain_diagnoses_agree_and_the_screen_saves_model_cycles(tm
     best = screened.candidates[0]
     again = chi2(ev.features({best.name: {best.param: best.value}}), meas)
     assert again == pytest.approx(best.chi2, rel=1e-9)
+
+
+class _StandInRunnerService:
+    """A service with a runner whose every run fails (no cycle is computed)."""
+
+    runner = object()
+
+    def run_jobs(self, jobs: list[object]) -> list[BaseException]:
+        from cad.errors import DataError
+
+        return [DataError("stand-in") for _ in jobs]
+
+
+def test_batches_count_each_run_once_in_process_as_on_a_cluster() -> None:
+    """``stats["batches"]``: in process a run announced by a batch is made later, when asked
+    for; announcing it again (the grids' batch, then each candidate's) counted it twice."""
+    from cad.general_params import GeneralHingeParams
+    from model.spec import ModelSpec
+    from validation.evaluate import ModelEvaluator, prefetch_together
+
+    spec = ModelSpec("general", GeneralHingeParams())
+    points = [(0.0, 100.0), (0.0, 250.0)]
+    rough = {"roughness_softening": {"compliance_mm3_per_n": 1e-4}}
+    soft = {"tangential_compliance": {"compliance_mm3_per_n": 1e-4}}
+    widths = []
+    for service in (None, _StandInRunnerService()):
+        ev = ModelEvaluator(spec, points, service=service)
+        coarse = ModelEvaluator(spec, points[:1], service=ev.service)
+        prefetch_together([(ev, [({}, None), (rough, None)]), (coarse, [({}, None)])])
+        ev.prefetch([(rough, None)])  # announced already: no batch
+        ev.prefetch([(rough, None), (soft, None)])  # one new effect: its 2 runs
+        widths.append((ev.batches, coarse.batches))
+    assert widths[0] == widths[1] == ([5, 2], [5])
