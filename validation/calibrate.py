@@ -32,10 +32,9 @@ from model.spec import ModelSpec
 from validation.candidate_fit import (
     DiagnoseSettings,
     chi2,
-    grid_effects,
     measured_features,
 )
-from validation.candidates import fit_candidate
+from validation.candidates import fit_candidate, screen_evaluator
 from validation.evaluate import ModelEvaluator
 from validation.feature_misfit import feature_misfit, fitted_cases
 from validation.joint_fit import joint_fit
@@ -135,7 +134,9 @@ def calibrate(
     to ``MU_RANGE``, with its held-out error refitted on each fold (``holdout_folds``).
     ``service``: the ``model.service.ModelService`` that runs the cycles (None: a new one
     per step, in process, nothing stored); with a runner every evaluation's design
-    points run together as Dask tasks.
+    points run together as Dask tasks. Each effect's grid runs coarse to fine as in
+    ``diagnose`` (``settings.screen``, ``validation.candidates.screen_evaluator``); its
+    refinement, the joint re-fit and every error in the ledger are the model's own mesh's.
 
     Raises:
         ParameterError: An unknown effect or one already in the model.
@@ -153,6 +154,7 @@ def calibrate(
     ev = ModelEvaluator(
         spec, meas.points, s.increments_per_stage, s.clearance_increments, service, meas.clocks
     )
+    screen = screen_evaluator(ev, s) if names else None  # the grids' coarse mesh, or None
     base = ev.features({})
     c = chi2(base, meas)
     err = math.sqrt(c / n_feat)
@@ -182,6 +184,8 @@ def calibrate(
             held += chi2(ev.features({}, mu=mu_fold), meas, test)
         spec = dataclasses.replace(spec, cycle=dataclasses.replace(spec.cycle, mu=mu))
         ev.set_mu(spec)
+        if screen is not None:
+            screen.set_mu(dataclasses.replace(spec, mesh=screen.spec.mesh))
         base = ev.features({})
         c = chi2(base, meas)
         held = max(held, c)
@@ -201,8 +205,9 @@ def calibrate(
             )
         )
     for k, name in enumerate(names, start=1 + k0):
-        ev.prefetch([(e, None) for e in grid_effects(name, s)])  # one batch on a cluster
-        fit = fit_candidate(ev, name, meas, base, 1, s)
+        if screen is not None:  # the effects added so far, on the coarse mesh
+            screen.spec = dataclasses.replace(spec, mesh=screen.spec.mesh)
+        fit = fit_candidate(ev, name, meas, base, 1, s, screen)  # its grid: one batch
         before = model_parameters(spec)
         start = {n: dict(p) for n, p in spec.effects.items()}  # previous values …
         start[name] = {fit.param: fit.value}  # … and the new effect's greedy value

@@ -39,7 +39,7 @@ class DiagnoseSettings:
         refine_iter: True-model points of a candidate's refinement, at most
             (``validation.param_search``: usually 1–3 suffice).
         screen: Fit the grids on the kind's coarse mesh when the model's is finer (coarse
-            to fine, ``validation.diagnose.screen_mesh``); the refinement and every χ² of
+            to fine, ``validation.candidates.screen_mesh``); the refinement and every χ² of
             the verdict stay on the model's own mesh.
         heldout_min_gain: Fraction the held-out χ² must fall by.
         explained_min: Fraction of the excess χ² the best candidate must explain.

@@ -8,6 +8,7 @@ held-out folds, bounds) of steps 3–4 in the ``validation.diagnose`` module doc
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 
@@ -17,6 +18,8 @@ from scipy import optimize, stats
 
 from cad.errors import EffectError
 from fe.effects.registry import REGISTRY
+from mesh.settings import MeshSettings
+from model.spec import ModelSpec
 from validation.candidate_fit import (
     CandidateFit,
     DiagnoseSettings,
@@ -71,6 +74,41 @@ def _screened(names: Sequence[str], screen: ModelEvaluator | None) -> dict[str, 
     return {n: screen is not None and not is_post_only(n) for n in names}
 
 
+def screen_mesh(spec: ModelSpec) -> MeshSettings | None:
+    """The coarser mesh a diagnosis of ``spec`` fits its grids on, or None.
+
+    The kind's coarse preset (``HingeKind.mesh_settings(coarse=True)``) when the model's
+    mesh is finer than it (a smaller global or contact size); None when it is not (the
+    grids then run on the model itself).
+    """
+    coarse = spec.hinge_kind.mesh_settings(coarse=True)
+    m = spec.mesh
+    finer = m.global_mm < coarse.global_mm or m.master_mm < coarse.master_mm
+    return coarse if finer else None
+
+
+def screen_evaluator(
+    evaluator: ModelEvaluator, settings: DiagnoseSettings
+) -> ModelEvaluator | None:
+    """The model of ``evaluator`` on its ``screen_mesh`` (same points, increments, service), or None.
+
+    None when ``settings.screen`` is off or the model's mesh is not finer than the kind's
+    coarse preset. A caller that changes ``evaluator``'s model (effects, μ) changes the
+    screen's the same way (``validation.calibrate``).
+    """
+    coarse = screen_mesh(evaluator.spec) if settings.screen else None
+    if coarse is None:
+        return None
+    return ModelEvaluator(
+        dataclasses.replace(evaluator.spec, mesh=coarse),
+        evaluator.points,
+        settings.increments_per_stage,
+        settings.clearance_increments,
+        evaluator.service,
+        evaluator.clocks or None,
+    )
+
+
 def prefetch_grids(
     evaluator: ModelEvaluator,
     names: Sequence[str],
@@ -103,13 +141,14 @@ def fit_candidate(
     base_features: FloatArray,
     n_tried: int,
     settings: DiagnoseSettings,
+    screen: ModelEvaluator | None = None,
 ) -> CandidateFit:
-    """Fit one candidate's parameter and judge it (``fit_candidates`` for one, no screen).
+    """Fit one candidate's parameter and judge it (``fit_candidates`` for one).
 
     Raises:
         EffectError: The candidate (a user's effect) failed.
     """
-    fits, failed = fit_candidates(evaluator, [name], meas, base_features, n_tried, settings)
+    fits, failed = fit_candidates(evaluator, [name], meas, base_features, n_tried, settings, screen)
     if name in failed:
         raise failed[name]
     return fits[0]

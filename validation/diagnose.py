@@ -65,7 +65,6 @@ import numpy as np
 from scipy import stats
 
 from cad.errors import HingelabError, ParameterError
-from mesh.settings import MeshSettings
 from model.spec import ModelSpec
 from validation.candidate_fit import (
     CandidateFit,
@@ -76,7 +75,7 @@ from validation.candidate_fit import (
     measured_features,
     residuals,
 )
-from validation.candidates import fit_candidates, prefetch_grids
+from validation.candidates import fit_candidates, prefetch_grids, screen_evaluator
 from validation.evaluate import ModelEvaluator
 from validation.features import FEATURES
 from validation.measurements import MeasurementSet
@@ -350,19 +349,6 @@ def refusal(spec: ModelSpec, name: str) -> str | None:
     return None
 
 
-def screen_mesh(spec: ModelSpec) -> MeshSettings | None:
-    """The coarser mesh a diagnosis of ``spec`` fits its grids on, or None.
-
-    The kind's coarse preset (``HingeKind.mesh_settings(coarse=True)``) when the model's
-    mesh is finer than it (a smaller global or contact size); None when it is not (the
-    grids then run on the model itself).
-    """
-    coarse = spec.hinge_kind.mesh_settings(coarse=True)
-    m = spec.mesh
-    finer = m.global_mm < coarse.global_mm or m.master_mm < coarse.master_mm
-    return coarse if finer else None
-
-
 def diagnose(
     spec: ModelSpec,
     data: MeasurementSet,
@@ -409,17 +395,7 @@ def diagnose(
             skipped[name] = "not among the candidates asked for"
         else:
             names.append(name)
-    screen = None
-    coarse = screen_mesh(spec) if s.screen else None
-    if coarse is not None and names:
-        screen = ModelEvaluator(
-            dataclasses.replace(spec, mesh=coarse),
-            meas.points,
-            s.increments_per_stage,
-            s.clearance_increments,
-            ev.service,
-            meas.clocks,
-        )
+    screen = screen_evaluator(ev, s) if names else None
     prefetch_grids(ev, names, s, screen, baseline=True)  # on a cluster: one batch
     base = ev.features({})
     c0 = chi2(base, meas)

@@ -58,6 +58,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="stated relative σ of η-only cases, for the fit and the comparison (default 0.05)",
     )
     p.add_argument("--no-compare", action="store_true", help="do not re-run the comparison")
+    p.add_argument(
+        "--no-screen",
+        action="store_true",
+        help="fit each effect's grid on the model's own mesh (default: on the kind's coarse "
+        "mesh when the model's is finer, then refined and judged on the model's own)",
+    )
     add_cluster_arguments(p)
     p.add_argument(
         "--fit",
@@ -104,6 +110,7 @@ def run(args: argparse.Namespace) -> int:
         features=FeatureSettings(rel_floor=args.model_error, eta_rel_sigma=args.uncertainty),
         increments_per_stage=args.increments,
         clearance_increments=2 * args.increments,
+        screen=not args.no_screen,
     )
     check_writable_dir(args.out, "--out")  # before the fit, not after
     with model_service(args, args.out / "results") as service:

@@ -115,3 +115,60 @@ def test_ledger_records_every_parameter_of_the_model(tmp_path):
     header, line = (tmp_path / "ledger.csv").read_text().splitlines()
     assert header.endswith(",model")
     assert "frame_compliance.compliance_mm_per_n=3.97e-05" in line
+
+
+@pytest.mark.slow
+def test_calibrate_fits_its_grid_coarse_to_fine_and_its_ledger_is_the_models_mesh(
+    tmp_path, monkeypatch
+):
+    import dataclasses
+
+    import numpy as np
+
+    import validation.calibrate as calibration
+    from cad.general_params import GeneralHingeParams
+    from fe.cycle.protocol import CycleSettings
+    from mesh.settings import MeshSettings
+    from model.spec import ModelSpec
+    from validation.candidate_fit import DiagnoseSettings, chi2, measured_features
+    from validation.evaluate import ModelEvaluator
+    from validation.measurements import read_measurement_set
+    from validation.synth import SynthSettings, design_cases, synthesize
+
+    cycle = CycleSettings(mu=0.2, increments_per_stage=6, clearance_increments=12)
+    coarse = ModelSpec("general", GeneralHingeParams(), MeshSettings.coarse(), cycle)
+    hidden = {"roughness_softening": {"compliance_mm3_per_n": 2e-4}}
+    cases = design_cases(((0.0, (100.0, 400.0)),))
+    synthesize(coarse, hidden, cases, SynthSettings(seed=41), tmp_path)
+    data = read_measurement_set(tmp_path)
+    model = dataclasses.replace(coarse, mesh=MeshSettings.coarse(contact_size_mm=1.5))
+    settings = DiagnoseSettings(
+        grid_points=5,
+        grid_decades=2.5,
+        refine_iter=4,
+        increments_per_stage=6,
+        clearance_increments=12,
+    )
+    screens = []
+    original = calibration.screen_evaluator
+
+    def spy(ev, s):
+        screens.append(original(ev, s))
+        return screens[-1]
+
+    monkeypatch.setattr(calibration, "screen_evaluator", spy)
+    _plain_spec, plain = calibration.calibrate(
+        model, data, ["roughness_softening"], dataclasses.replace(settings, screen=False)
+    )
+    spec, rows = calibration.calibrate(model, data, ["roughness_softening"], settings)
+    assert screens[0] is None
+    assert screens[1] is not None
+    assert screens[1].n_cycles > 0  # the grid ran on the coarse mesh
+    assert screens[1].spec.mesh == MeshSettings.coarse()
+    key = "roughness_softening.compliance_mm3_per_n"
+    assert abs(np.log10(rows[-1].greedy[key] / plain[-1].greedy[key])) < 0.05
+    assert rows[-1].chi2 <= 1.05 * plain[-1].chi2 + 1.0
+    # the ledger's χ² is the model mesh's own, at the written values
+    meas = measured_features(data, settings.features)
+    again = chi2(ModelEvaluator(spec, meas.points, 6, 12).features({}), meas)
+    assert again == pytest.approx(rows[-1].chi2, rel=1e-9)

@@ -14,7 +14,7 @@ import pytest
 
 from fe.kinds import hinge_kind
 from mesh.settings import MeshSettings
-from validation.diagnose import screen_mesh
+from validation.candidates import screen_mesh
 
 
 def _spec(kind: str, mesh: MeshSettings | None = None):
