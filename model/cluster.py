@@ -265,23 +265,59 @@ class ClusterRunner:
         """
         if not jobs:
             return
-        client = self.client()
-        workers = client.scheduler_info()["workers"]
-        if not workers:
-            raise DataError("the Dask cluster has no workers")
-        plan = Dispatcher(
-            [geometry_key(spec, p) for spec, p in jobs],
-            steal_min=STEAL_MIN,
-            keep=WORKER_GEOMETRIES,
-            max_losses=MAX_LOSSES,
-            ahead=AHEAD,
-        )
-        for w in sorted(workers):
-            plan.add_worker(w, workers[w].get("nthreads", 1), self._held.get(w, ()))
-        try:
-            _Drive(client, plan, jobs, handle, run_job_summary if summarize else run_job).run()
-        finally:  # what each worker holds now, for the next batch (a diagnosis runs many)
-            self._held = {w: plan.holds(w) for w in plan.workers}
+        task = run_job_summary if summarize else run_job
+        dispatch(self.client(), jobs, task, handle, held=self._held)
+
+
+def dispatch(
+    client: Any,
+    jobs: Sequence[tuple[ModelSpec, DesignPoint]],
+    task: Callable[..., Any],
+    handle: Callable[[int, Any, BaseException | None], None],
+    *,
+    args: Callable[[int], tuple[Any, ...]] | None = None,
+    held: dict[str, list[str]] | None = None,
+    steal_min: int = STEAL_MIN,
+) -> dict[str, list[str]]:
+    """Run ``task`` for every job on the workers of ``client`` (``model.dispatch.Dispatcher``).
+
+    Args:
+        client: A connected ``dask.distributed.Client``.
+        jobs: (spec, point) pairs: their geometries steer where each runs.
+        task: The function a worker runs, ``task(*args(i))``.
+        handle: As ``ClusterRunner.run``'s; an error it raises cancels the jobs in flight.
+        args: The task's arguments for job i (default: the job's spec and point).
+        held: What each worker holds, from earlier calls; updated in place (also when a
+            job's error ends the call), so the next call starts from it.
+        steal_min: ``Dispatcher.steal_min``: pending jobs per holder from which a worker sets
+            a held geometry up too (a very large value: never; for tasks that write a
+            geometry's files into one shared folder).
+
+    Returns:
+        ``held``: the geometries each worker holds now.
+
+    Raises:
+        DataError: If the cluster has no workers.
+    """
+    held = {} if held is None else held
+    workers = client.scheduler_info()["workers"]
+    if not workers:
+        raise DataError("the Dask cluster has no workers")
+    plan = Dispatcher(
+        [geometry_key(spec, p) for spec, p in jobs],
+        steal_min=steal_min,
+        keep=WORKER_GEOMETRIES,
+        max_losses=MAX_LOSSES,
+        ahead=AHEAD,
+    )
+    for w in sorted(workers):
+        plan.add_worker(w, workers[w].get("nthreads", 1), held.get(w, ()))
+    try:
+        _Drive(client, plan, jobs, handle, task, args or (lambda j: tuple(jobs[j]))).run()
+    finally:  # what each worker holds now, for the next batch (a diagnosis runs many)
+        held.clear()
+        held.update({w: plan.holds(w) for w in plan.workers})
+    return held
 
 
 class _Drive:
@@ -294,8 +330,10 @@ class _Drive:
         jobs: Sequence[tuple[ModelSpec, DesignPoint]],
         handle: Callable[[int, Any, BaseException | None], None],
         task: Callable[..., Any],
+        args: Callable[[int], tuple[Any, ...]],
     ) -> None:
         self.client, self.plan, self.jobs, self.handle, self.task = client, plan, jobs, handle, task
+        self.args = args
         self.running: dict[Any, tuple[int, str]] = {}  # future → (job, worker)
         self.polled = time.monotonic()
 
@@ -323,9 +361,8 @@ class _Drive:
     def _submit(self) -> None:
         for w in self.plan.workers:
             while (j := self.plan.next_job(w)) is not None:
-                spec, p = self.jobs[j]
                 future = self.client.submit(
-                    self.task, spec, p, pure=False, workers=[w], allow_other_workers=False
+                    self.task, *self.args(j), pure=False, workers=[w], allow_other_workers=False
                 )
                 self.running[future] = (j, w)
 

@@ -1,15 +1,19 @@
 """Sweep points on Dask: a private ``LocalCluster``, or an existing cluster by its address.
 
-Both pin every point of one geometry to one worker (one preparation per geometry) and
-hand each point's record to the driver the moment it completes, so the driver records it
-in the trace at once (an interrupted sweep keeps every finished point).
+Both hand the points out with ``model.cluster.dispatch`` (a worker runs the geometries it
+holds first and takes the next geometry when it is free, so the work balances however
+many points each geometry has) and hand each point's record to the driver the moment it
+completes, so the driver records it in the trace at once (an interrupted sweep keeps
+every finished point).
 
 * ``run_on_local_cluster``: worker processes on this machine share the sweep's folder;
-  each stores its results and writes its files there itself.
+  each stores its results and writes its files there itself, so one geometry runs on
+  one worker only (``NEVER_STEAL``).
 * ``run_on_scheduler``: the workers of an existing cluster may be other machines and need
   only the installed package. A worker computes the cycle and sends it back (without the
   condensed operators); this process stores it, writes the loop files and records the
-  point. The geometry files (STEP, mesh) stay with the workers, in memory.
+  point. The geometry files (STEP, mesh) stay with the workers, in memory, so an idle
+  worker may set up a geometry another one holds when it has many points left.
 
 Dask logs (connections, "killing worker" on shutdown) are silenced unless the root logger
 is at INFO (``hingelab -v``).
@@ -23,8 +27,6 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
-
-from cad.errors import DataError
 
 if TYPE_CHECKING:
     from model.spec import DesignPoint, ModelSpec
@@ -77,40 +79,20 @@ def run_point_remote(spec: ModelSpec, point: DesignPoint) -> dict[str, Any]:
     return {"run": light, "mesh_stats": stats, "lu_threads": LU_THREADS}
 
 
-def _submit_pinned(
-    client: Any,
-    spec: ModelSpec,
-    points: list[DesignPoint],
-    task: Callable[..., Any],
-    args: Callable[[Any], tuple[Any, ...]],
-) -> list[Any]:
-    """Submit ``task(*args(point))`` for every point, all points of a geometry on one worker."""
-    from model.spec import geometry_key
-
-    geometry = {p: geometry_key(spec, p) for p in points}
-    keys = list(dict.fromkeys(geometry.values()))
-    workers = sorted(client.scheduler_info()["workers"])
-    if not workers:
-        raise DataError("the Dask cluster has no workers")
-    home = {g: workers[i % len(workers)] for i, g in enumerate(keys)}
-    return [
-        client.submit(
-            task, *args(p), pure=False, workers=[home[geometry[p]]], allow_other_workers=False
-        )
-        for p in points
-    ]
+NEVER_STEAL = 10**9
+"""``steal_min`` of a sweep on local workers: a geometry runs on one worker only, as the
+workers write its files (STEP, mesh) into the sweep's one folder."""
 
 
-def _drain(client: Any, futures: list[Any], handle: Callable[[Any], None]) -> None:
-    """Hand each finished task's value to ``handle`` in completion order; cancel the rest on error."""
-    from dask.distributed import as_completed
+def _stored(store: Callable[[Any], None]) -> Callable[[int, Any, BaseException | None], None]:
+    """A ``model.cluster.dispatch`` handler: the task's value to ``store``; its error raised."""
 
-    try:
-        for future in as_completed(futures):
-            handle(future.result())
-    except BaseException:
-        client.cancel(futures)
-        raise
+    def handle(_job: int, value: Any, error: BaseException | None) -> None:
+        if error is not None:
+            raise error  # ends the sweep's Dask run (the jobs in flight are cancelled)
+        store(value)
+
+    return handle
 
 
 def run_on_local_cluster(
@@ -119,14 +101,20 @@ def run_on_local_cluster(
     """Run points on a private LocalCluster of ``settings.workers`` processes."""
     from dask.distributed import Client
 
-    from model.cluster import local_cluster
+    from model.cluster import dispatch, local_cluster
     from model.spec import geometry_key
 
     spec = settings.spec()
     n = min(settings.workers, len({geometry_key(spec, p) for p in points}))
     with local_cluster(n) as cluster, Client(cluster) as client:
-        futures = _submit_pinned(client, spec, points, run_point_task, lambda p: (settings, p, out))
-        _drain(client, futures, store)
+        dispatch(
+            client,
+            [(spec, p) for p in points],
+            run_point_task,
+            _stored(store),
+            args=lambda j: (settings, points[j], out),
+            steal_min=NEVER_STEAL,
+        )
 
 
 def run_on_scheduler(
@@ -137,7 +125,7 @@ def run_on_scheduler(
     Raises:
         DataError: If the scheduler cannot be reached (naming the address and --scheduler).
     """
-    from model.cluster import connect
+    from model.cluster import connect, dispatch
     from model.store import ResultStore
     from studies.sweep_points import point_record
 
@@ -156,5 +144,4 @@ def run_on_scheduler(
         store(rec)
 
     with client:
-        futures = _submit_pinned(client, spec, points, run_point_remote, lambda p: (spec, p))
-        _drain(client, futures, handle)
+        dispatch(client, [(spec, p) for p in points], run_point_remote, _stored(handle))
