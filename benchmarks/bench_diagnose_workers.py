@@ -18,7 +18,13 @@ Each run starts from an empty result store (``--out`` of its own) in a fresh pro
 verdict, fitted value and χ² of the runs must agree (the cluster path runs the same code;
 the plain search is another path to the same fit).
 
+Wall times on this machine vary by ±10 % between runs of the same code (measured), so
+``--repeat N`` runs the in-process and the 2-worker diagnosis N times each, alternating,
+and reports the speed-up of the medians (and its range over the pairs); ``--no-plain``
+skips the plain search.
+
 Run: .venv/bin/python benchmarks/bench_diagnose_workers.py [general|bearing ...] [--work DIR]
+     [--repeat N] [--no-plain]
 """
 
 from __future__ import annotations
@@ -29,6 +35,8 @@ import sys
 import tempfile
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import print_table, run_isolated
@@ -75,13 +83,15 @@ def _synth(work: str, kind: str) -> dict[str, Any]:
     return {}
 
 
-def _diagnose(work: str, kind: str, model: str, workers: int, screen: bool) -> dict[str, Any]:
+def _diagnose(
+    work: str, kind: str, model: str, workers: int, screen: bool, rep: int = 0
+) -> dict[str, Any]:
     import contextlib
     import io
 
     from studies.cli.main import main
 
-    label = f"{kind}_w{workers}_{'screen' if screen else 'plain'}"
+    label = f"{kind}_w{workers}_{'screen' if screen else 'plain'}_{rep}"  # each run from empty
     argv = ["diagnose", model, f"{work}/data_{kind}", "--json", "--out", f"{work}/{label}"]
     argv += ["--workers", str(workers)] + ([] if screen else ["--no-screen"])
     buf = io.StringIO()
@@ -113,6 +123,13 @@ def main() -> None:
         i = args.index("--work")
         work = args[i + 1]
         del args[i : i + 2]
+    repeat = 1
+    if "--repeat" in args:
+        i = args.index("--repeat")
+        repeat = int(args[i + 1])
+        del args[i : i + 2]
+    plain = "--no-plain" not in args
+    args = [a for a in args if a != "--no-plain"]
     kinds = args or ["general", "bearing"]
     os.makedirs(work, exist_ok=True)
     print(f"work folder {work}; load average {os.getloadavg()}")
@@ -120,15 +137,22 @@ def main() -> None:
         if not Path(work, f"data_{kind}", "cases.csv").is_file():
             run_isolated(_synth, work, kind)
         model = _default_model(kind, work)
-        runs = [(1, True), (2, True)]
-        if kind == "general":
-            runs = [(1, False), *runs]
-        rows = [run_isolated(_diagnose, work, kind, model, w, sc) for w, sc in runs]
+        runs = [(w, True, r) for r in range(repeat) for w in (1, 2)]
+        if kind == "general" and plain:
+            runs = [(1, False, 0), *runs]
+        rows = [run_isolated(_diagnose, work, kind, model, w, sc, r) for w, sc, r in runs]
         cols = ["hinge", "search", "workers", "wall_s", "peak_MB", "cycles", "coarse_cycles"]
         cols += ["batches", "widest", "refine_runs", "verdict", "best", "value", "chi2"]
         print_table(rows, cols)
         one, two = rows[-2], rows[-1]
-        print(f"{kind}: speed-up 1 → 2 workers: {one['wall_s'] / two['wall_s']:.2f}×")
+        ones = [r["wall_s"] for r in rows if r["workers"] == 1 and r["search"] != "plain"]
+        twos = [r["wall_s"] for r in rows if r["workers"] == 2]
+        pairs = [a / b for a, b in zip(ones, twos, strict=True)]
+        med1, med2 = float(np.median(ones)), float(np.median(twos))
+        print(
+            f"{kind}: speed-up 1 → 2 workers: {med1 / med2:.2f}× (medians {med1:.1f} s / "
+            f"{med2:.1f} s over {len(ones)} run(s) each; pairs {min(pairs):.2f}–{max(pairs):.2f}×)"
+        )
         same = all(
             r["verdict"] == rows[0]["verdict"] and r["best"] == rows[0]["best"] for r in rows
         )
@@ -137,7 +161,7 @@ def main() -> None:
             f"{kind}: same verdict and effect in every run: {same}; 1 vs 2 workers: value and "
             f"χ² agree to {rel:.1e} relative"
         )
-        if kind == "general":
+        if kind == "general" and plain:
             ref = rows[0]
             print(
                 f"general: coarse→fine vs plain: value {one['value'] / ref['value'] - 1:+.2%}, "

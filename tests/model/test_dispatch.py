@@ -36,7 +36,9 @@ def _drain(d: Dispatcher, order: list[str]) -> dict[int, str]:
 class _Workers:
     """Workers that run one job at a time, each with its own LRU of four geometries."""
 
-    def __init__(self, n_workers: int, cost_s: dict[str, float], setup_s: float) -> None:
+    def __init__(
+        self, n_workers: int, cost_s: dict[str, float], setup_s: float | dict[str, float]
+    ) -> None:
         self.names = [f"w{k}" for k in range(n_workers)]
         self.prepared: dict[str, OrderedDict[str, None]] = {w: OrderedDict() for w in self.names}
         self.cost_s, self.setup_s = cost_s, setup_s
@@ -49,7 +51,8 @@ class _Workers:
             return
         g = geometries[j]
         lru = self.prepared[w]
-        cost = self.cost_s[g] + (0.0 if g in lru else self.setup_s)
+        setup = self.setup_s if isinstance(self.setup_s, float) else self.setup_s[g]
+        cost = self.cost_s[g] + (0.0 if g in lru else setup)
         lru[g] = None
         lru.move_to_end(g)
         while len(lru) > 4:
@@ -62,10 +65,13 @@ def simulate(
     cost_s: dict[str, float],
     n_workers: int,
     *,
-    setup_s: float = 10.0,
+    setup_s: float | dict[str, float] = 10.0,
     steal_min: int = 2,
 ) -> float:
-    """Wall time [s] of batches run one after another, the holdings kept between them."""
+    """Wall time [s] of batches run one after another, the holdings kept between them.
+
+    ``setup_s``: one set-up cost for every geometry, or each geometry's own.
+    """
     pool = _Workers(n_workers, cost_s, setup_s)
     held: dict[str, list[str]] = {}
     clock = 0.0
@@ -196,6 +202,22 @@ def test_unequal_geometries_run_at_least_1_7_times_faster_on_two_workers() -> No
     assert one / simulate(batches, cost, 2) >= 1.7
     pinned = simulate(batches, cost, 2, steal_min=10**6)  # never join: one geometry each
     assert one / pinned < 1.4
+
+
+def test_a_diagnosis_shaped_pair_of_batches_runs_1_85_times_faster_on_two_workers() -> None:
+    """The 6-case default-mesh diagnosis (benchmarks/bench_diagnose_workers.txt): 132 coarse
+    grid runs on two clearances and the fine baseline, then one round on all four geometries;
+    each geometry's cycle and set-up cost [s] as measured on one thread, rounded."""
+    cost = {"coarse0.1": 0.95, "coarse0": 0.45, "fine0.1": 1.15, "fine0": 2.2}
+    setup = {"coarse0.1": 0.8, "coarse0": 0.8, "fine0.1": 2.0, "fine0": 2.5}
+    grids = ["coarse0.1"] * 66 + ["coarse0"] * 66 + ["fine0.1"] * 3 + ["fine0"] * 3
+    rounds = ["fine0.1"] * 6 + ["fine0"] * 6 + ["coarse0"] * 3 + ["coarse0.1"] * 3
+    one = simulate([grids, rounds], cost, 1, setup_s=setup)
+    assert one == pytest.approx(sum(cost[g] for g in grids + rounds) + sum(setup.values()))
+    two = simulate([grids, rounds], cost, 2, setup_s=setup)
+    assert one / two >= 1.85  # ideal 2: set-ups of geometries both workers hold cost the rest
+    pinned = simulate([grids, rounds], cost, 2, setup_s=setup, steal_min=10**6)
+    assert one / pinned < one / two
 
 
 def test_one_geometry_of_many_jobs_runs_faster_on_two_workers() -> None:
