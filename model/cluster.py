@@ -13,7 +13,8 @@ of many jobs runs on every worker, each setting it up once. A worker computes th
 cycle and sends it back without the condensed operators; the calling process stores it
 (``model.store.ResultStore``) the moment it arrives, so an interrupted run keeps what
 finished and a rerun computes only the rest. The worker runs the same code as the
-in-process service, so the numbers are the same.
+in-process service, so the numbers are the same. ``dispatch`` is that loop on its own, for
+other tasks (``studies.sweep_dask``: a sweep's points, whose workers write their files).
 
 A user's effect from a file travels with the spec (``ModelSpec.effect_sources``) and is
 registered on the worker when the spec is unpickled. A plug-in hinge kind must be
@@ -321,7 +322,7 @@ def dispatch(
 
 
 class _Drive:
-    """One ``ClusterRunner.run``: submit what the plan gives, hand back what completes."""
+    """One ``dispatch``: submit what the plan gives, hand back what completes."""
 
     def __init__(
         self,

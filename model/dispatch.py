@@ -3,7 +3,7 @@
 A worker keeps the geometries it prepared (``model.cluster.WORKER_GEOMETRIES`` of them, the
 least recently used dropped), so a job of a geometry it holds costs only its cycle, and a
 job of another geometry costs a set-up (build, mesh, factorise) first. ``Dispatcher`` is
-the policy alone, without Dask, so it can be tested on its own; ``ClusterRunner.run``
+the policy alone, without Dask, so it can be tested on its own; ``model.cluster.dispatch``
 drives it with Dask futures:
 
 * A worker has at most ``slots`` jobs in flight (its threads), plus ``ahead`` queued
