@@ -126,22 +126,13 @@ def test_calibrate_fits_its_grid_coarse_to_fine_and_its_ledger_is_the_models_mes
     import numpy as np
 
     import validation.calibrate as calibration
-    from cad.general_params import GeneralHingeParams
-    from fe.cycle.protocol import CycleSettings
     from mesh.settings import MeshSettings
-    from model.spec import ModelSpec
     from validation.candidate_fit import DiagnoseSettings, chi2, measured_features
     from validation.evaluate import ModelEvaluator
-    from validation.measurements import read_measurement_set
-    from validation.synth import SynthSettings, design_cases, synthesize
 
-    cycle = CycleSettings(mu=0.2, increments_per_stage=6, clearance_increments=12)
-    coarse = ModelSpec("general", GeneralHingeParams(), MeshSettings.coarse(), cycle)
-    hidden = {"roughness_softening": {"compliance_mm3_per_n": 2e-4}}
-    cases = design_cases(((0.0, (100.0, 400.0)),))
-    synthesize(coarse, hidden, cases, SynthSettings(seed=41), tmp_path)
-    data = read_measurement_set(tmp_path)
-    model = dataclasses.replace(coarse, mesh=MeshSettings.coarse(contact_size_mm=1.5))
+    from .screen_data import coarse_data_and_finer_model
+
+    model, data = coarse_data_and_finer_model(tmp_path, (100.0, 400.0), seed=41)
     settings = DiagnoseSettings(
         grid_points=5,
         grid_decades=2.5,

@@ -37,28 +37,13 @@ def test_a_default_mesh_is_screened_on_its_kinds_coarse_preset(kind):
 
 @pytest.mark.slow
 def test_screened_and_plain_diagnoses_agree_and_the_screen_saves_model_cycles(tmp_path):
-    from cad.general_params import GeneralHingeParams
-    from fe.cycle.protocol import CycleSettings
-    from model.spec import ModelSpec
     from validation.candidate_fit import DiagnoseSettings, chi2, measured_features
     from validation.diagnose import diagnose
     from validation.evaluate import ModelEvaluator
-    from validation.measurements import read_measurement_set
-    from validation.synth import SynthSettings, design_cases, synthesize
 
-    cycle = CycleSettings(mu=0.2, increments_per_stage=6, clearance_increments=12)
-    coarse = ModelSpec("general", GeneralHingeParams(), MeshSettings.coarse(), cycle)
-    hidden = {"roughness_softening": {"compliance_mm3_per_n": 2e-4}}
-    synthesize(
-        coarse,
-        hidden,
-        design_cases(((0.0, (100.0, 250.0, 400.0)),)),
-        SynthSettings(seed=31),
-        tmp_path,
-    )
-    data = read_measurement_set(tmp_path)
-    # the model judged: finer than the coarse preset at the contacts
-    model = dataclasses.replace(coarse, mesh=MeshSettings.coarse(contact_size_mm=1.5))
+    from .screen_data import coarse_data_and_finer_model
+
+    model, data = coarse_data_and_finer_model(tmp_path, (100.0, 250.0, 400.0), seed=31)
     base = DiagnoseSettings(
         grid_points=5,
         grid_decades=2.5,
