@@ -52,7 +52,7 @@ THREAD_VARIABLES = (
 ones, OpenBLAS would start a thread per core in every worker for the steps outside the
 cycle's own thread limit (assembly, condensation, loop post-processing). (Measured on the
 6-case diagnosis: no change in time; the workers' slowdown was the allocator, see
-``local_cluster``.)"""
+``WORKER_CONFIG``.)"""
 
 
 WORKER_GEOMETRIES = 4
