@@ -43,16 +43,22 @@ _WORKER_SERVICE: dict[str, Any] = {}
 _WORKER_LOCK = threading.Lock()  # a worker with several threads prepares each geometry once
 
 THREAD_VARIABLES = (
-    "HINGELAB_LU_THREADS",
     "OMP_NUM_THREADS",
     "OPENBLAS_NUM_THREADS",
     "MKL_NUM_THREADS",
 )
-"""Thread counts a local worker is started with (its share of the cores): without the BLAS
-ones, OpenBLAS would start a thread per core in every worker for the steps outside the
-cycle's own thread limit (assembly, condensation, loop post-processing). (Measured on the
-6-case diagnosis: no change in time; the workers' slowdown was the allocator, see
+"""Thread counts a local worker is started with (its share of the cores): without them,
+OpenBLAS and MKL would start a thread per core in every worker for the steps outside the
+cycle's own thread limit (assembly, condensation, loop post-processing). They change no
+number: a job runs OpenBLAS on one thread (``fe.linalg.threads``), and PARDISO factorises
+on one thread, its solves not depending on the count (``fe.linalg.sparse``). (Measured
+on the 6-case diagnosis: no change in time; the workers' slowdown was the allocator, see
 ``WORKER_CONFIG``.)"""
+
+NUMBER_VARIABLES = ("HINGELAB_LU_THREADS",)
+"""Thread counts that change a job's numbers in the last bits: a local worker gets the
+client's value (``fe.contact.dense.lu_threads``, 1 unless the user asked for more), so a
+job gives the same numbers on a worker as in process."""
 
 
 WORKER_GEOMETRIES = 4
@@ -136,16 +142,20 @@ def connect(address: str) -> Any:
 def local_cluster(workers: int) -> Any:
     """A private ``LocalCluster`` of ``workers`` one-thread processes (Dask's logs quietened).
 
-    Each worker gets its share of the cores for its large LUs (``HINGELAB_LU_THREADS``) and
-    for every other BLAS/OpenMP call (``THREAD_VARIABLES``), so two workers never take a
-    second thread each on two cores. Its dashboard listens on a
-    free port (Dask's default 8787 is taken when two commands or test processes run at once).
+    Each worker gets its share of the cores for every BLAS/OpenMP call
+    (``THREAD_VARIABLES``), so two workers never take a second thread each on two cores,
+    and the client's ``NUMBER_VARIABLES``, so its jobs compute what they would in process.
+    Its dashboard listens on a free port (Dask's default 8787 is taken when two commands or
+    test processes run at once).
     """
     import dask
     from dask.distributed import LocalCluster
 
     quiet_dask()
     share = str(max(1, (os.cpu_count() or 1) // workers))
+    env = {name: share for name in THREAD_VARIABLES} | {
+        name: os.environ[name] for name in NUMBER_VARIABLES if name in os.environ
+    }
     with dask.config.set(WORKER_CONFIG):
         return LocalCluster(
             n_workers=workers,
@@ -156,7 +166,7 @@ def local_cluster(workers: int) -> Any:
             # (a non-converged candidate value is an expected outcome): the worker's own
             # "Compute Failed" traceback on stderr would only alarm the user
             silence_logs=logging.CRITICAL,
-            env={name: share for name in THREAD_VARIABLES},
+            env=env,
         )
 
 

@@ -31,6 +31,7 @@ from typing import Any
 from cad.errors import HingelabError, ParameterError
 from fe.cycle.result import CycleResult
 from fe.kinds import Built
+from fe.linalg.threads import job_threads
 from mesh.meshed import MeshedHinge
 from model.spec import (
     DesignPoint,
@@ -179,7 +180,10 @@ class ModelService:
             return self._prepared[key]
         t0 = time.perf_counter()
         out = None if self.geometry_dir is None else self.geometry_dir(geometry_folder(spec, point))
-        built = spec.hinge_kind.build(structure_at(spec, point), spec.mesh, out, self.cache_dir)
+        with job_threads():  # the same numbers in process as on a worker
+            built = spec.hinge_kind.build(
+                structure_at(spec, point), spec.mesh, out, self.cache_dir
+            )
         prepared = Prepared(key, built)
         prepared.setup_s = time.perf_counter() - t0
         self.setup_s += prepared.setup_s
@@ -232,9 +236,10 @@ class ModelService:
         settings = dataclasses.replace(spec.cycle, amplitude_n=point.amplitude_n)
         t0 = time.perf_counter()
         try:
-            return spec.hinge_kind.run(
-                prepared.built, hinge_at(spec, point), settings, spec.effects, progress
-            )
+            with job_threads():  # the same numbers in process as on a worker
+                return spec.hinge_kind.run(
+                    prepared.built, hinge_at(spec, point), settings, spec.effects, progress
+                )
         finally:
             self.n_computed += 1
             self.cycle_s += time.perf_counter() - t0

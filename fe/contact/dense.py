@@ -47,8 +47,11 @@ def wide(entries: int, threads: int | None = None) -> contextlib.AbstractContext
     """BLAS threads for one product with a dense matrix of ``entries`` entries.
 
     ``lu_threads(threads)`` threads from ``PRODUCT_THREADED_MIN`` entries, else the
-    caller's setting unchanged. The controller is made on first use (by then numpy's and
-    scipy's BLAS are loaded) and switching costs ~10 µs, against milliseconds a product.
+    caller's setting unchanged: one by default, since a matrix-vector product's bits
+    depend on OpenBLAS's thread count too (n = 1 500 and 5 100: 1e-13 apart on 1 and 2
+    threads; n = 2 000 and 3 000 the same). The controller is made on first use (by then
+    numpy's and scipy's BLAS are loaded) and switching costs ~10 µs, against
+    milliseconds a product.
     """
     n = lu_threads(threads) if entries >= PRODUCT_THREADED_MIN else 1
     if n <= 1:
@@ -62,10 +65,10 @@ def wide(entries: int, threads: int | None = None) -> contextlib.AbstractContext
 
 
 def lu_threads_from_env() -> int:
-    """``HINGELAB_LU_THREADS`` if set (an integer ≥ 1), else min(2, CPU count)."""
+    """``HINGELAB_LU_THREADS`` if set (an integer ≥ 1), else 1 (see :func:`lu_threads`)."""
     raw = os.environ.get(LU_THREADS_ENV)
     if raw is None:
-        return min(2, os.cpu_count() or 1)
+        return 1
     try:
         value = int(raw)
     except ValueError:
@@ -78,10 +81,21 @@ def lu_threads_from_env() -> int:
 def lu_threads(setting: int | None = None) -> int:
     """Return the BLAS threads of a dense LU of at least ``LU_THREADED_MIN`` unknowns.
 
+    One by default, on every machine, in process and on a Dask worker alike: OpenBLAS's
+    LU depends on its thread count in the last bits (n = 3 000: factors 9e-13 apart on 1
+    and 2 threads), and that is enough to change a Newton path (one default-mesh cycle:
+    182 against 181 iterations), so a job's numbers would depend on where it ran (issue
+    35). The large products (:func:`wide`) take the same count. Measured cost of one
+    thread against two: none at the default mesh (the 6-case general diagnosis 118 s
+    against 127 s; the default cycle 13.4 s against 12.7-14.6 s); at level 1 the contact
+    phase gains from a second thread (zero clearance: 76.8 → 69.9 s from the products,
+    and a large LU n = 3 000: 0.82 → 0.50 s), so a user who runs one process on a finer
+    mesh may ask for two, knowing the numbers then differ in the last bits from a
+    one-thread run.
+
     Args:
         setting: ``ContactSettings.lu_threads``; None means the environment variable
-            ``HINGELAB_LU_THREADS`` read now (a sweep with one worker per core sets 1),
-            else min(2, CPU count).
+            ``HINGELAB_LU_THREADS`` read now, else 1.
 
     Returns:
         The effective thread count (≥ 1).

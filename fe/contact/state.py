@@ -99,8 +99,9 @@ class ContactSettings:
             to ``LinearSolver.LU`` only).
         krylov: Tuning of ``LinearSolver.KRYLOV``.
         lu_threads: BLAS threads of a dense LU of at least
-            ``fe.contact.dense.LU_THREADED_MIN`` unknowns; None: the environment variable
-            ``HINGELAB_LU_THREADS`` read at each call, else min(2, CPU count) (see
+            ``fe.contact.dense.LU_THREADED_MIN`` unknowns and of the large products;
+            None: the environment variable ``HINGELAB_LU_THREADS`` read at each call,
+            else 1 (the numbers depend on it in the last bits; see
             :func:`fe.contact.dense.lu_threads`).
         proximal: Tuning of the fallback for singular step matrices
             (:mod:`fe.contact.proximal`).

@@ -7,11 +7,12 @@ factorisation with those DOFs ordered last).
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
 import sys
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from enum import Enum
 from pathlib import Path
 
@@ -94,6 +95,32 @@ def _load_mkl() -> ctypes.CDLL | None:
 _MKL: list[ctypes.CDLL | None] = []
 
 
+@contextlib.contextmanager
+def _one_mkl_thread(lib: ctypes.CDLL) -> Iterator[None]:
+    """Run PARDISO's factorisation on one MKL thread (this thread only; restored after).
+
+    The factor MKL builds depends on its thread count, and so, in the last bits, does every
+    solve with it: measured on a 3D Laplacian (1 728-216 000 unknowns), a factor built on two
+    threads gives solutions 4e-16 to 2e-15 away from one built on one, and two 2-thread
+    factors of the same matrix differ from each other. Solves with a factor built on one
+    thread are bitwise the same on 1 and 2 threads for 1-128 right-hand sides. So the
+    numbers of a job are the same wherever it runs (in process on the machine's cores, on
+    a one-thread Dask worker: issue 35) and from run to run. MKL's CNR mode
+    (``iparm[33]``, ``MKL_CBWR``) does not give this (measured: the same differences).
+    Cost: the factorisation's second thread (the default general cycle, 13 s, unchanged
+    within noise; benchmarks/bench_bearing_cli.txt for the bearing hinge).
+    """
+    fn = getattr(lib, "MKL_Set_Num_Threads_Local", None)
+    if fn is None:  # not an MKL runtime with thread-local settings: leave it
+        yield
+        return
+    before = fn(1)
+    try:
+        yield
+    finally:
+        fn(before)
+
+
 def _mkl() -> ctypes.CDLL | None:
     if not _MKL:
         _MKL.append(_load_mkl())
@@ -111,7 +138,8 @@ class _Pardiso:
         self._ja = np.ascontiguousarray(upper.indices, dtype=np.int32)
         self._pt = np.zeros(64, dtype=np.int64)
         self._iparm = _iparm()
-        self._call(12, np.zeros((self.n, 1), order="F"))
+        with _one_mkl_thread(lib):
+            self._call(12, np.zeros((self.n, 1), order="F"))
         weakref.finalize(self, _Pardiso._release, self._fn, self._pt, self._iparm, self.n)
 
     def _call(self, phase: int, b: FloatArray) -> FloatArray:
@@ -357,11 +385,13 @@ def _pardiso_schur(lib: ctypes.CDLL, A: sp.csr_matrix, b: IntArray) -> FloatArra
     i32p = ctypes.POINTER(i32)
     fn = lib.pardiso
     try:
-        fn(pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(i32(1)),
-           ctypes.byref(i32(1)), ctypes.byref(i32(_PARDISO_SPD)), ctypes.byref(i32(12)),
-           ctypes.byref(i32(n)), a.ctypes.data, ia.ctypes.data_as(i32p), ja.ctypes.data_as(i32p),
-           perm.ctypes.data_as(i32p), ctypes.byref(i32(1)), iparm.ctypes.data_as(i32p),
-           ctypes.byref(i32(0)), rhs.ctypes.data, S.ctypes.data, ctypes.byref(err))  # fmt: skip
+        with _one_mkl_thread(lib):  # the Schur complement is formed in the factorisation
+            fn(pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(i32(1)),
+               ctypes.byref(i32(1)), ctypes.byref(i32(_PARDISO_SPD)), ctypes.byref(i32(12)),
+               ctypes.byref(i32(n)), a.ctypes.data, ia.ctypes.data_as(i32p),
+               ja.ctypes.data_as(i32p), perm.ctypes.data_as(i32p), ctypes.byref(i32(1)),
+               iparm.ctypes.data_as(i32p), ctypes.byref(i32(0)), rhs.ctypes.data, S.ctypes.data,
+               ctypes.byref(err))  # fmt: skip
     finally:
         _Pardiso._release(fn, pt, iparm, n)
     if err.value != 0:

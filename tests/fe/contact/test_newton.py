@@ -22,7 +22,7 @@ def test_lu_thread_count_from_environment(monkeypatch):
     monkeypatch.setenv("HINGELAB_LU_THREADS", "1")
     assert lu_threads_from_env() == 1
     monkeypatch.delenv("HINGELAB_LU_THREADS")
-    assert 1 <= lu_threads_from_env() <= 2
+    assert lu_threads_from_env() == 1  # on every machine: the LU's bits depend on it
 
 
 @pytest.mark.parametrize("threads", [1, 2])
