@@ -44,6 +44,7 @@ from fe.bearing.loading import (
     with_zero_crossing,
 )
 from fe.bearing.system import BearingSystem
+from fe.contact.memo import start_afresh
 from fe.contact.state import ContactState
 from fe.cycle.driver import Recorded, Target, drive
 from fe.cycle.protocol import CycleSettings, stage_targets, with_cutbacks
@@ -72,6 +73,7 @@ def run_bearing_cycle(
     """
     if system.params.ball_model is BallModel.FULL:
         return run_full_cycle(system, settings, preload_n, progress=progress).cycle
+    start_afresh()  # nothing learnt by earlier cycles on this system's W
     t0 = time.perf_counter()
     pre = preload_step(system, preload_n, settings)
     t_pre = time.perf_counter() - t0

@@ -34,6 +34,7 @@ from fe.bearing.balls import REG_FRACTION, ball_law, block_diag
 from fe.bearing.fits import GRIP, N_RIGID, FitSystem
 from fe.bearing.loading import with_zero_crossing
 from fe.bearing.pair import axial_state_from_load, bearing_from_params
+from fe.contact.memo import start_afresh
 from fe.contact.solve import solve_increment
 from fe.contact.state import ContactSettings, ContactState, IncrementResult, LinearSolver
 from fe.cycle.driver import Recorded, Target, drive
@@ -314,6 +315,7 @@ def run_fit_cycle(
         ConvergenceError: With the increment; ``partial`` holds the increments that converged.
     """
     contact = fit_contact_settings(settings)
+    start_afresh()  # nothing learnt by earlier cycles on this system's W
     t0 = time.perf_counter()
     with threadpool_limits(limits=settings.blas_threads, user_api="blas"):
         pre, pre_work = fit_preload(system, preload_n, contact)  # frictionless assembly

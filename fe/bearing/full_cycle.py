@@ -60,6 +60,7 @@ from fe.bearing.loading import (
 from fe.bearing.meshed_ball import BallStep, MeshedBallLaw, check_converged, rig_maps
 from fe.bearing.system import BearingSystem
 from fe.contact.law import ContactStatus
+from fe.contact.memo import start_afresh
 from fe.contact.state import ContactState
 from fe.cycle.driver import Recorded, Target, drive
 from fe.cycle.protocol import CycleSettings, stage_targets, with_cutbacks
@@ -373,6 +374,7 @@ def run_full_cycle(
             the increments that converged.
     """
     check_range("preload_n", preload_n, 0.0, MAX_PRELOAD_N)
+    start_afresh()  # nothing learnt by earlier cycles on this system's W
     t0 = time.perf_counter()
     law = meshed_ball_law(system, settings.mu, grid)
     t_rig = time.perf_counter() - t0

@@ -146,7 +146,7 @@ class Workspace:
     gmres_iterations: int = 0
 
 
-_WORKSPACES: ArrayMemo[Workspace] = ArrayMemo(per_thread=True)
+_WORKSPACES: ArrayMemo[Workspace] = ArrayMemo(per_thread=True, learned=True)
 
 
 def workspace_for(W: FloatArray, w_sum: float = float("nan")) -> Workspace:

@@ -25,11 +25,31 @@ from __future__ import annotations
 import threading
 import weakref
 from collections.abc import Callable
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 
 V = TypeVar("V")
+
+
+_LEARNED: list[ArrayMemo[Any]] = []
+"""The memos whose values a solve learns along a cycle (``learned=True``)."""
+
+
+def start_afresh() -> None:
+    """Forget what this thread's solves learnt of every ``W`` (call at the start of a cycle).
+
+    A cycle that reuses an earlier cycle's ``W`` (the condensed configurations of a
+    geometry are kept for every amplitude and candidate) would otherwise start from the
+    Krylov base LU and the working set that cycle left: another Newton path, so other
+    bits and another iteration count (measured: one coarse cycle 120 against 124
+    iterations, loops 1e-10 apart), and a cycle's numbers would depend on which cycles
+    ran before it in the process, e.g. in process against on a Dask worker (issue 35).
+    What depends on ``W``'s content only (its fingerprint, its symmetry) is kept.
+    """
+    ident = threading.get_ident()
+    for memo in _LEARNED:
+        memo._forget_thread(ident)
 
 
 class ArrayMemo(Generic[V]):
@@ -38,13 +58,24 @@ class ArrayMemo(Generic[V]):
     Args:
         per_thread: Keep a separate value for every thread (for mutable values such as a
             preconditioner workspace that two threads must not share).
+        learned: The values are learnt along a cycle and forgotten by
+            :func:`start_afresh` (needs ``per_thread``).
     """
 
-    def __init__(self, per_thread: bool = False) -> None:
+    def __init__(self, per_thread: bool = False, *, learned: bool = False) -> None:
+        if learned and not per_thread:
+            raise ValueError("a learned memo must be per_thread (start_afresh is per thread)")
         self._per_thread = per_thread
         self._entries: dict[tuple[int, int], tuple[weakref.ref[np.ndarray], V]] = {}
         # Reentrant: a collection run while the lock is held may drop another entry.
         self._lock = threading.RLock()
+        if learned:
+            _LEARNED.append(self)
+
+    def _forget_thread(self, ident: int) -> None:
+        with self._lock:
+            for key in [k for k in self._entries if k[1] == ident]:
+                del self._entries[key]
 
     def _key(self, a: np.ndarray) -> tuple[int, int]:
         return (id(a), threading.get_ident() if self._per_thread else 0)

@@ -76,7 +76,7 @@ class _Kept(NamedTuple):
     w_sum_sub: float
 
 
-_KEPT: ArrayMemo[_Kept] = ArrayMemo(per_thread=True)
+_KEPT: ArrayMemo[_Kept] = ArrayMemo(per_thread=True, learned=True)
 
 
 def _dofs(points: IntArray) -> IntArray:

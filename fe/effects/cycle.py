@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
+from fe.contact.memo import start_afresh
 from fe.cycle.protocol import CycleSettings
 from fe.cycle.result import CycleResult
 from fe.effects.base import EffectContext, FloatArray
@@ -98,6 +99,7 @@ def run_cycle_with_effects(
         ConvergenceError: As ``fe.general.cycle.run_cycle`` (its ``partial`` is not post-processed).
     """
     values = validate_effects(effects)
+    start_afresh()  # the effects' own solves too learn nothing from earlier cycles
     base = dict(configs) if configs is not None else configurations(system, clearance_mm)
     t0 = time.perf_counter()
     with threadpool_limits(limits=settings.blas_threads, user_api="blas"):  # as run_cycle's solves

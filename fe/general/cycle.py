@@ -33,6 +33,7 @@ from threadpoolctl import threadpool_limits
 
 from cad.errors import ParameterError, check_range
 from cad.general_params import MAX_CLEARANCE_MM
+from fe.contact.memo import start_afresh
 from fe.contact.state import ContactSettings, ContactState
 from fe.cycle.driver import CycleStep, Recorded, Target, drive
 from fe.cycle.protocol import CycleSettings, stage_targets
@@ -112,6 +113,7 @@ def run_cycle(
             ``partial`` is the CycleResult of the increments that converged.
     """
     check_range("clearance_mm", clearance_mm, 0.0, MAX_CLEARANCE_MM)
+    start_afresh()  # nothing learnt by earlier cycles on these configurations' W
     if abs(clearance_mm - system.clearance_mm) > 1e-9:
         raise ParameterError(
             f"clearance_mm = {clearance_mm:g} does not match the mesh's exact cylinders "

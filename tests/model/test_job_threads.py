@@ -43,3 +43,26 @@ def test_a_cycle_gives_the_same_bits_on_one_and_two_process_threads():
         assert np.array_equal(a.p, b.p)
         assert np.array_equal(a.w, b.w)
     np.testing.assert_equal(one.metrics(), two.metrics())  # NaN where both are NaN
+
+
+def _signature(result):  # type: ignore[no-untyped-def]
+    return (
+        [dataclasses.astuple(i) for i in result.increments],
+        [s.p.tobytes() + s.w.tobytes() for s in result.states],
+    )
+
+
+def test_a_cycle_does_not_depend_on_the_cycles_run_before_it_on_its_geometry():
+    """A diagnosis runs many cycles on one prepared geometry, in another order in process
+    than on each worker: the contact solver must not carry what it learnt of ``W`` (its
+    Krylov base, its working set) from one cycle into the next (``start_afresh``)."""
+    cycle = CycleSettings(increments_per_stage=8, clearance_increments=16)  # a diagnosis' screen
+    spec = ModelSpec("general", GeneralHingeParams(), MeshSettings.coarse(), cycle)
+    point = DesignPoint(200.0, {"clearance_mm": 0.0})
+
+    fresh = ModelService().run_point(spec, point)
+    service = ModelService()
+    service.run_point(spec, DesignPoint(100.0, {"clearance_mm": 0.0}))  # same geometry, W
+    after = service.run_point(spec, point)
+
+    assert _signature(after) == _signature(fresh)

@@ -5,7 +5,7 @@ import threading
 
 import numpy as np
 
-from fe.contact.memo import ArrayMemo
+from fe.contact.memo import ArrayMemo, start_afresh
 from fe.contact.state import _FINGERPRINTS, fingerprint, is_symmetric
 
 
@@ -88,3 +88,37 @@ def test_pop_forgets_the_value_of_that_array_only():
     assert memo.pop(a) is None
     assert memo.get(b) == "b"
     assert len(memo) == 1
+
+
+def test_a_fresh_start_forgets_what_this_thread_learnt_and_nothing_else():
+    learned: ArrayMemo[str] = ArrayMemo(per_thread=True, learned=True)
+    content: ArrayMemo[str] = ArrayMemo()  # a property of W's content (symmetry, sum)
+    a = np.zeros(2)
+    learned.put(a, "this thread")
+    content.put(a, "symmetric")
+    other: list[str | None] = []
+
+    def elsewhere() -> None:
+        learned.put(a, "other thread")
+        barrier.wait()  # this thread starts afresh meanwhile
+        barrier.wait()
+        other.append(learned.get(a))
+
+    barrier = threading.Barrier(2)
+    worker = threading.Thread(target=elsewhere)
+    worker.start()
+    barrier.wait()
+    start_afresh()
+    barrier.wait()
+    worker.join()
+
+    assert learned.get(a) is None
+    assert content.get(a) == "symmetric"
+    assert other == ["other thread"]  # a cycle running in another thread keeps its own
+
+
+def test_a_learned_memo_must_be_per_thread():
+    import pytest
+
+    with pytest.raises(ValueError, match="per_thread"):
+        ArrayMemo(learned=True)
