@@ -23,8 +23,11 @@ Wall times on this machine vary by ±10 % between runs of the same code (measure
 and reports the speed-up of the medians (and its range over the pairs); ``--no-plain``
 skips the plain search.
 
+``--one-worker`` adds runs on a Dask cluster of one local worker (workers 0 in the table):
+the 1/2 worker curve, apart from the in-process run.
+
 Run: .venv/bin/python benchmarks/bench_diagnose_workers.py [general|bearing ...] [--work DIR]
-     [--repeat N] [--no-plain]
+     [--repeat N] [--no-plain] [--one-worker]
 """
 
 from __future__ import annotations
@@ -45,6 +48,9 @@ ROOT = Path(__file__).resolve().parents[1]
 HIDDEN = "frame_compliance:compliance_mm_per_n=2e-5"
 CASES = {"general": "0:100,250,400;0.1:100,250,400", "bearing": "0:150,400;100:150,400;200:150,400"}
 EXAMPLE = {"general": "MODEL.toml", "bearing": "MODEL_bearing_fits.toml"}
+ONE_WORKER_CLUSTER = 0
+"""``workers`` of a run on a Dask cluster of one local worker (``--one-worker``): the cost of
+running as tasks, apart from running on two cores (1 is in process, as ``--workers 1``)."""
 
 
 def _coarse_model(kind: str, work: str) -> str:
@@ -93,9 +99,17 @@ def _diagnose(
 
     label = f"{kind}_w{workers}_{'screen' if screen else 'plain'}_{rep}"  # each run from empty
     argv = ["diagnose", model, f"{work}/data_{kind}", "--json", "--out", f"{work}/{label}"]
-    argv += ["--workers", str(workers)] + ([] if screen else ["--no-screen"])
+    argv += [] if screen else ["--no-screen"]
     buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
+    with contextlib.ExitStack() as stack:
+        if workers == ONE_WORKER_CLUSTER:  # a cluster of one worker, started as --workers N's
+            from model.cluster import local_cluster
+
+            cluster = stack.enter_context(local_cluster(1))
+            argv += ["--scheduler", cluster.scheduler_address]
+        else:
+            argv += ["--workers", str(workers)]
+        stack.enter_context(contextlib.redirect_stdout(buf))
         assert main(argv) == 0
     d = json.loads(buf.getvalue())
     best = d["candidates"][0] if d["candidates"] else {}
@@ -129,7 +143,8 @@ def main() -> None:
         repeat = int(args[i + 1])
         del args[i : i + 2]
     plain = "--no-plain" not in args
-    args = [a for a in args if a != "--no-plain"]
+    one_worker = "--one-worker" in args
+    args = [a for a in args if a not in ("--no-plain", "--one-worker")]
     kinds = args or ["general", "bearing"]
     os.makedirs(work, exist_ok=True)
     print(f"work folder {work}; load average {os.getloadavg()}")
@@ -140,11 +155,13 @@ def main() -> None:
         runs = [(w, True, r) for r in range(repeat) for w in (1, 2)]
         if kind == "general" and plain:
             runs = [(1, False, 0), *runs]
+        if one_worker:
+            runs += [(ONE_WORKER_CLUSTER, True, r) for r in range(repeat)]
         rows = [run_isolated(_diagnose, work, kind, model, w, sc, r) for w, sc, r in runs]
         cols = ["hinge", "search", "workers", "wall_s", "peak_MB", "cycles", "coarse_cycles"]
         cols += ["batches", "widest", "refine_runs", "verdict", "best", "value", "chi2"]
         print_table(rows, cols)
-        one, two = rows[-2], rows[-1]
+        one = [r for r in rows if r["workers"] == 1 and r["search"] != "plain"][-1]
         ones = [r["wall_s"] for r in rows if r["workers"] == 1 and r["search"] != "plain"]
         twos = [r["wall_s"] for r in rows if r["workers"] == 2]
         pairs = [a / b for a, b in zip(ones, twos, strict=True)]
@@ -156,10 +173,11 @@ def main() -> None:
         same = all(
             r["verdict"] == rows[0]["verdict"] and r["best"] == rows[0]["best"] for r in rows
         )
-        rel = max(abs(two[k] / one[k] - 1.0) for k in ("value", "chi2"))
+        screened = [r for r in rows if r["search"] != "plain"]
+        rel = max(abs(r[k] / one[k] - 1.0) for r in screened for k in ("value", "chi2"))
         print(
-            f"{kind}: same verdict and effect in every run: {same}; 1 vs 2 workers: value and "
-            f"χ² agree to {rel:.1e} relative"
+            f"{kind}: same verdict and effect in every run: {same}; in process, on 1 and 2 "
+            f"workers: value and χ² agree to {rel:.1e} relative"
         )
         if kind == "general" and plain:
             ref = rows[0]
@@ -167,6 +185,13 @@ def main() -> None:
                 f"general: coarse→fine vs plain: value {one['value'] / ref['value'] - 1:+.2%}, "
                 f"χ² {one['chi2']:.3g} vs {ref['chi2']:.3g}; "
                 f"{ref['wall_s'] / one['wall_s']:.2f}× faster in process"
+            )
+        cl = [r["wall_s"] for r in rows if r["workers"] == ONE_WORKER_CLUSTER]
+        if cl:
+            med_c = float(np.median(cl))
+            print(
+                f"{kind}: one-worker cluster {med_c:.1f} s: {med_c / med1:.2f}× the in-process "
+                f"time; 2 workers {med_c / med2:.2f}× faster than one"
             )
         print(f"load average after: {os.getloadavg()}", flush=True)
 
