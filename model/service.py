@@ -181,9 +181,7 @@ class ModelService:
         t0 = time.perf_counter()
         out = None if self.geometry_dir is None else self.geometry_dir(geometry_folder(spec, point))
         with job_threads():  # the same numbers in process as on a worker
-            built = spec.hinge_kind.build(
-                structure_at(spec, point), spec.mesh, out, self.cache_dir
-            )
+            built = spec.hinge_kind.build(structure_at(spec, point), spec.mesh, out, self.cache_dir)
         prepared = Prepared(key, built)
         prepared.setup_s = time.perf_counter() - t0
         self.setup_s += prepared.setup_s

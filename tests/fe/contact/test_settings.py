@@ -135,4 +135,3 @@ def test_a_frozen_W_is_still_refused_when_not_finite_at_every_call():
         validate_problem(W, np.zeros((1, 3)), ContactState.initial(1), None, None)
     with pytest.raises(ParameterError, match="W and w_free must be finite"):
         validate_problem(W, np.zeros((1, 3)), ContactState.initial(1), None, None)
-
