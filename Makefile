@@ -25,7 +25,8 @@ test-all: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 -m "slow or not slow"
 
 lint: $(STAMP)
-	$(BIN)/ruff check cad mesh fe model rsm studies validation tests
+	$(BIN)/ruff check cad mesh fe model rsm studies validation tests benchmarks
+	$(BIN)/ruff format --check cad mesh fe model rsm studies validation tests benchmarks
 	$(BIN)/mypy
 	$(BIN)/lint-imports --no-cache
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cad.errors import HingelabError, ParameterError
+from cad.errors import ConvergenceError, HingelabError, ParameterError
 from fe.cycle.result import CycleResult
 from fe.kinds import Built
 from fe.linalg.threads import job_threads
@@ -130,6 +130,17 @@ def check_spec(spec: ModelSpec) -> None:
     kind.check(spec.hinge, spec.effects)
 
 
+def _ran(err: BaseException | None) -> bool:
+    """Whether a job's cycle ran to an end: a result, or an increment that did not converge.
+
+    ``n_computed`` counts those, here and on a cluster alike (a candidate value whose
+    cycle does not converge counted in process and not on a cluster: the paper's
+    validation 540 against 539). A refused spec, a failed set-up or a lost worker is not
+    a cycle computed.
+    """
+    return err is None or isinstance(err, ConvergenceError)
+
+
 class ModelService:
     """Run a model at design points, preparing each geometry once.
 
@@ -145,7 +156,8 @@ class ModelService:
             compute go to its Dask workers (None: computed in this process).
 
     Attributes:
-        n_computed: Cycles computed (here or on the runner's workers) since it was made.
+        n_computed: Cycles computed (here or on the runner's workers) since it was made:
+            those that gave a result or stopped at an increment that did not converge.
         n_cached: Cycles read back from the store.
     """
 
@@ -235,12 +247,16 @@ class ModelService:
         t0 = time.perf_counter()
         try:
             with job_threads():  # the same numbers in process as on a worker
-                return spec.hinge_kind.run(
+                result = spec.hinge_kind.run(
                     prepared.built, hinge_at(spec, point), settings, spec.effects, progress
                 )
+        except ConvergenceError:
+            self.n_computed += 1  # as ``_ran`` counts it on a cluster
+            raise
         finally:
-            self.n_computed += 1
             self.cycle_s += time.perf_counter() - t0
+        self.n_computed += 1
+        return result
 
     def run(
         self,
@@ -374,10 +390,10 @@ class ModelService:
 
             def arrived(j: int, result: CycleResult | None, err: BaseException | None) -> None:
                 i = todo[j]
-                if result is not None:
+                if _ran(err):
                     self.n_computed += 1
-                    if self.store is not None:
-                        self.store.put(keys[i], result)
+                if result is not None and self.store is not None:
+                    self.store.put(keys[i], result)
                 out[i] = result if result is not None else err
 
             self.runner.run([resolved[i] for i in todo], arrived)
@@ -413,7 +429,7 @@ class ModelService:
         if self.runner is not None:
 
             def arrived(i: int, done: Any, err: BaseException | None) -> None:
-                if err is None:
+                if _ran(err):
                     self.n_computed += 1
                 out[i] = done if err is None else err
 

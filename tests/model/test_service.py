@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cad.errors import ParameterError
+from cad.errors import ConvergenceError, ParameterError
 from cad.general_params import GeneralHingeParams
 from fe.cycle.protocol import CycleSettings
 from fe.kinds import hinge_kind
@@ -179,3 +179,39 @@ def test_a_loop_effect_applies_to_the_bearing_hinge_and_a_contact_effect_is_refu
         ParameterError, match=r"\['face_friction'\] do not act on the bearing hinge"
     ):
         ModelService().run(contact, [point])
+
+
+class _StandInRunner:
+    """A cluster runner that hands back the given (result, error) per job, in order."""
+
+    def __init__(self, outcomes):  # type: ignore[no-untyped-def]
+        self.outcomes = outcomes
+
+    def run(self, jobs, arrived, summarize=False):  # type: ignore[no-untyped-def]
+        for j, _ in enumerate(jobs):
+            arrived(j, *self.outcomes[j])
+
+
+def _no_convergence() -> ConvergenceError:
+    return ConvergenceError("increment failed", increment=3, iteration=60, residual=1.0)
+
+
+def test_a_cycle_that_does_not_converge_counts_as_computed_here_and_on_a_cluster(monkeypatch):
+    """n_computed counts the same cycles in process and on a cluster (issue 35: a failed
+    candidate value counted here and not there, 540 against 539)."""
+    spec = _spec()
+
+    def fails(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+        raise _no_convergence()
+
+    monkeypatch.setattr(type(spec.hinge_kind), "run", fails)
+    here = ModelService()
+    (outcome,) = here.run_jobs([(spec, DesignPoint(200.0))])
+    there = ModelService(
+        runner=_StandInRunner([(None, _no_convergence()), (None, ParameterError("refused"))])
+    )
+    outcomes = there.run_jobs([(spec, DesignPoint(200.0)), (spec, DesignPoint(300.0))])
+
+    assert isinstance(outcome, ConvergenceError)
+    assert [type(o) for o in outcomes] == [ConvergenceError, ParameterError]
+    assert here.n_computed == there.n_computed == 1  # the refused job ran no cycle
