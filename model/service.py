@@ -410,7 +410,8 @@ class ModelService:
         """The kind's summary of a cycle at ``point`` (``HingeKind.summary``, geometry prepared here)."""
         spec = resolve_structural(spec)
         built = self.prepare(spec, point).built
-        return spec.hinge_kind.summary(built, hinge_at(spec, point), result)
+        with job_threads():  # part of the job: as on a worker (``run_summarized``)
+            return spec.hinge_kind.summary(built, hinge_at(spec, point), result)
 
     def run_summarized(
         self, jobs: Sequence[tuple[ModelSpec, DesignPoint]]

@@ -83,9 +83,9 @@ def lu_threads(setting: int | None = None) -> int:
 
     One by default, on every machine, in process and on a Dask worker alike: OpenBLAS's
     LU depends on its thread count in the last bits (n = 3 000: factors 9e-13 apart on 1
-    and 2 threads), and that is enough to change a Newton path (one default-mesh cycle:
-    182 against 181 iterations), so a job's numbers would depend on where it ran (issue
-    35). The large products (:func:`wide`) take the same count. Measured cost of one
+    and 2 threads; one default-mesh cycle's contact pressures 1.7e-12 apart), and a
+    difference in the last bits can change a Newton path, so a job's numbers would
+    depend on where it ran (issue 35). The large products (:func:`wide`) take the same count. Measured cost of one
     thread against two: none at the default mesh (the 6-case general diagnosis 118 s
     against 127 s; the default cycle 13.4 s against 12.7-14.6 s); at level 1 the contact
     phase gains from a second thread (zero clearance: 76.8 → 69.9 s from the products,
