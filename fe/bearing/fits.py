@@ -272,9 +272,12 @@ def build_fit_system(
     rows_t = rows[:, touched]
     n_c = C.shape[0]
     WW = np.zeros((rows.shape[0], rows.shape[0]))
-    for start in range(0, rows.shape[0], BLOCK_RHS):
+
+    def condense(solver: Factorization, start: int) -> None:  # its own columns of WW
         block = rows[start : start + BLOCK_RHS].toarray().T  # column-major, as PARDISO's
-        WW[:, start : start + BLOCK_RHS] = rows_t @ factor.solve(block, rows=touched)
+        WW[:, start : start + BLOCK_RHS] = rows_t @ solver.solve(block, rows=touched)
+
+    factor.in_parallel(range(0, rows.shape[0], BLOCK_RHS), condense)
     WW = 0.5 * (WW + WW.T)
     # A tang node at the corner of bore and lip, facing ring 0's bottom edge (tied to the
     # lip), moves with its master: a zero row of W. It cannot carry load; drop it.

@@ -7,14 +7,16 @@ factorisation with those DOFs ordered last).
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import ctypes
 import os
 import sys
 import weakref
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from enum import Enum
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -26,6 +28,7 @@ from cad.errors import ParameterError, SolverError
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+T = TypeVar("T")
 
 __all__ = ["Factorization", "LinearSolverBackend", "inverse_block"]
 
@@ -107,8 +110,13 @@ def _one_mkl_thread(lib: ctypes.CDLL) -> Iterator[None]:
     numbers of a job are the same wherever it runs (in process on the machine's cores, on
     a one-thread Dask worker: issue 35) and from run to run. MKL's CNR mode
     (``iparm[33]``, ``MKL_CBWR``) does not give this (measured: the same differences).
-    Cost: the factorisation's second thread (the default general cycle, 13 s, unchanged
-    within noise; benchmarks/bench_bearing_cli.txt for the bearing hinge).
+    Cost, in process only (a Dask worker has one thread anyway): the factorisation's
+    second thread, and the solves of a one-thread factor gain little from one (a 125 000-
+    unknown Laplacian, 128 right-hand sides: 2.02 s on one thread, 1.80 s on two, 1.49 s
+    with a two-thread factor). The default general cycle is unchanged within noise (13 s);
+    the bearing hinge's fit condensation took 38 s instead of 24 s until it shared its
+    blocks between one-thread handles (``Factorization.in_parallel``: 23 s again;
+    benchmarks/bench_bearing_cli.txt, session 22).
     """
     fn = getattr(lib, "MKL_Set_Num_Threads_Local", None)
     if fn is None:  # not an MKL runtime with thread-local settings: leave it
@@ -121,6 +129,12 @@ def _one_mkl_thread(lib: ctypes.CDLL) -> Iterator[None]:
         fn(before)
 
 
+def _mkl_threads() -> int:
+    """MKL's thread count here (1 without MKL)."""
+    lib = _mkl()
+    return 1 if lib is None else max(1, int(lib.MKL_Get_Max_Threads()))
+
+
 def _mkl() -> ctypes.CDLL | None:
     if not _MKL:
         _MKL.append(_load_mkl())
@@ -131,6 +145,7 @@ class _Pardiso:
     """One MKL PARDISO handle holding the factor of an SPD matrix (upper triangle)."""
 
     def __init__(self, lib: ctypes.CDLL, upper: sp.csr_matrix) -> None:
+        self._lib, self._upper = lib, upper  # for ``twin``
         self._fn = lib.pardiso
         self.n = upper.shape[0]
         self._a = np.ascontiguousarray(upper.data, dtype=np.float64)
@@ -141,6 +156,10 @@ class _Pardiso:
         with _one_mkl_thread(lib):
             self._call(12, np.zeros((self.n, 1), order="F"))
         weakref.finalize(self, _Pardiso._release, self._fn, self._pt, self._iparm, self.n)
+
+    def twin(self) -> _Pardiso:
+        """Another handle with the same factor, bitwise (factorised again, on one thread)."""
+        return _Pardiso(self._lib, self._upper)
 
     def _call(self, phase: int, b: FloatArray) -> FloatArray:
         x = np.zeros_like(b, order="F")
@@ -241,6 +260,44 @@ class Factorization:
                 options={"SymmetricMode": True},
             )
             self.backend = LinearSolverBackend.SCIPY
+
+    def in_parallel(self, items: Sequence[T], work: Callable[[Factorization, T], None]) -> None:
+        """Call ``work(solver, item)`` for every item, on MKL's threads as one-thread solvers.
+
+        The solves of a factor built on one thread (``_one_mkl_thread``) gain little from
+        more MKL threads; here each thread has its own PARDISO handle of the same factor
+        (factorised again, on one thread, so bitwise the same: every item's numbers are
+        those of a sequential run) and solves on one MKL thread. Items are dealt out in
+        turn; ``work`` must write only its own item's part of any shared output. On one
+        MKL thread (a Dask worker), with SuperLU, or for one item, it is a plain loop.
+        Memory: one more factor per extra thread, alive during the call.
+
+        Raises:
+            Whatever ``work`` raises (the other threads finish their items first).
+        """
+        threads = _mkl_threads() if isinstance(self._impl, _Pardiso) else 1
+        n = min(threads, len(items))
+        if n <= 1:
+            for item in items:
+                work(self, item)
+            return
+        impl = self._impl
+        assert isinstance(impl, _Pardiso)
+
+        def run(k: int) -> None:
+            with _one_mkl_thread(impl._lib):
+                solver = self if k == 0 else self._with(impl.twin())
+                for item in items[k::n]:
+                    work(solver, item)
+
+        with concurrent.futures.ThreadPoolExecutor(n) as pool:
+            for f in [pool.submit(run, k) for k in range(n)]:
+                f.result()
+
+    def _with(self, impl: _Pardiso) -> Factorization:
+        twin = object.__new__(Factorization)
+        twin.n, twin.backend, twin._impl = self.n, self.backend, impl
+        return twin
 
     def solve(self, B: npt.ArrayLike, *, rows: npt.ArrayLike | None = None) -> FloatArray:
         """Solve K_ff X = B.

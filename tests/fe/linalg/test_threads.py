@@ -81,3 +81,25 @@ def test_schur_compliance_is_bitwise_the_same_on_one_and_two_mkl_threads(mkl):
 
     assert np.array_equal(blocks[0], blocks[1])
     assert np.array_equal(blocks[1], blocks[2])
+
+
+def test_blocks_solved_in_parallel_are_bitwise_those_of_a_plain_loop(mkl):
+    """``in_parallel`` gives the second core back to a condensation (one one-thread handle
+    per thread): the same numbers as one handle solving every block in turn."""
+    K = _laplacian(16)
+    B = np.random.default_rng(5).standard_normal((K.shape[0], 40))
+    F = Factorization(K, backend=LinearSolverBackend.PARDISO)
+    starts = range(0, 40, 8)
+    plain = np.column_stack([F.solve(B[:, s : s + 8]) for s in starts])
+    out = np.zeros_like(plain)
+    solvers = set()
+
+    def work(solver, start):  # type: ignore[no-untyped-def]
+        solvers.add(id(solver))
+        out[:, start : start + 8] = solver.solve(B[:, start : start + 8])
+
+    with mkl.limit(limits=2):
+        F.in_parallel(starts, work)
+
+    assert len(solvers) == 2  # two handles, one per thread
+    assert np.array_equal(out, plain)
