@@ -2,8 +2,9 @@
 
 In process a cycle has the machine's cores; as a Dask task it has one. A diagnosis must
 give the same verdict, fitted values and χ² on both, to the bit: the differences thread
-counts make in the last bits (PARDISO's factor, OpenBLAS's kernels) change contact
-Newton paths (default mesh: 182 against 181 iterations, loops 1e-4 apart). The job runs
+counts make in the last bits (PARDISO's factor, OpenBLAS's kernels) can change a contact
+Newton path (session 21: the paper's validation in process and on 2 workers, a held-out
+χ² 3e-4 apart). The job runs
 OpenBLAS on one thread and PARDISO factorises on one (``fe.linalg.threads``,
 ``fe.linalg.sparse``).
 """
@@ -33,23 +34,18 @@ def _run(threads: int):  # type: ignore[no-untyped-def]
         return ModelService().run_point(spec, DesignPoint(300.0, {"clearance_mm": 0.1}))
 
 
-def test_a_cycle_gives_the_same_bits_on_one_and_two_process_threads():
-    one, two = _run(1), _run(2)
-
-    fields = [f.name for f in dataclasses.fields(one.increments[0])]
-    for a, b in zip(one.increments, two.increments, strict=True):
-        assert [getattr(a, f) for f in fields] == [getattr(b, f) for f in fields]
-    for a, b in zip(one.states, two.states, strict=True):
-        assert np.array_equal(a.p, b.p)
-        assert np.array_equal(a.w, b.w)
-    np.testing.assert_equal(one.metrics(), two.metrics())  # NaN where both are NaN
-
-
 def _signature(result):  # type: ignore[no-untyped-def]
     return (
         [dataclasses.astuple(i) for i in result.increments],
         [s.p.tobytes() + s.w.tobytes() for s in result.states],
     )
+
+
+def test_a_cycle_gives_the_same_bits_on_one_and_two_process_threads():
+    one, two = _run(1), _run(2)
+
+    np.testing.assert_equal(_signature(one), _signature(two))  # NaN where both are NaN
+    np.testing.assert_equal(one.metrics(), two.metrics())
 
 
 def test_a_cycle_does_not_depend_on_the_cycles_run_before_it_on_its_geometry():
@@ -65,4 +61,4 @@ def test_a_cycle_does_not_depend_on_the_cycles_run_before_it_on_its_geometry():
     service.run_point(spec, DesignPoint(100.0, {"clearance_mm": 0.0}))  # same geometry, W
     after = service.run_point(spec, point)
 
-    assert _signature(after) == _signature(fresh)
+    np.testing.assert_equal(_signature(after), _signature(fresh))
