@@ -53,12 +53,9 @@ cycle's own thread limit (assembly, condensation, loop post-processing). They ch
 number: a job runs OpenBLAS on one thread (``fe.linalg.threads``), and PARDISO factorises
 on one thread, its solves not depending on the count (``fe.linalg.sparse``). (Measured
 on the 6-case diagnosis: no change in time; the workers' slowdown was the allocator, see
-``WORKER_CONFIG``.)"""
-
-NUMBER_VARIABLES = ("HINGELAB_LU_THREADS",)
-"""Thread counts that change a job's numbers in the last bits: a local worker gets the
-client's value (``fe.contact.dense.lu_threads``, 1 unless the user asked for more), so a
-job gives the same numbers on a worker as in process."""
+``WORKER_CONFIG``.) ``HINGELAB_LU_THREADS`` is not among them: it changes a job's numbers
+in the last bits (``fe.contact.dense.lu_threads``), so a worker keeps the value it inherits
+from this process, and its jobs compute what they would here."""
 
 
 WORKER_GEOMETRIES = 4
@@ -143,19 +140,15 @@ def local_cluster(workers: int) -> Any:
     """A private ``LocalCluster`` of ``workers`` one-thread processes (Dask's logs quietened).
 
     Each worker gets its share of the cores for every BLAS/OpenMP call
-    (``THREAD_VARIABLES``), so two workers never take a second thread each on two cores,
-    and the client's ``NUMBER_VARIABLES``, so its jobs compute what they would in process.
-    Its dashboard listens on a free port (Dask's default 8787 is taken when two commands or
-    test processes run at once).
+    (``THREAD_VARIABLES``), so two workers never take a second thread each on two cores;
+    the rest of its environment is this process's. Its dashboard listens on a free port
+    (Dask's default 8787 is taken when two commands or test processes run at once).
     """
     import dask
     from dask.distributed import LocalCluster
 
     quiet_dask()
     share = str(max(1, (os.cpu_count() or 1) // workers))
-    env = {name: share for name in THREAD_VARIABLES} | {
-        name: os.environ[name] for name in NUMBER_VARIABLES if name in os.environ
-    }
     with dask.config.set(WORKER_CONFIG):
         return LocalCluster(
             n_workers=workers,
@@ -166,7 +159,7 @@ def local_cluster(workers: int) -> Any:
             # (a non-converged candidate value is an expected outcome): the worker's own
             # "Compute Failed" traceback on stderr would only alarm the user
             silence_logs=logging.CRITICAL,
-            env=env,
+            env={name: share for name in THREAD_VARIABLES},
         )
 
 
@@ -289,7 +282,7 @@ def dispatch(
     args: Callable[[int], tuple[Any, ...]] | None = None,
     held: dict[str, list[str]] | None = None,
     steal_min: int = STEAL_MIN,
-) -> dict[str, list[str]]:
+) -> None:
     """Run ``task`` for every job on the workers of ``client`` (``model.dispatch.Dispatcher``).
 
     Args:
@@ -303,9 +296,6 @@ def dispatch(
         steal_min: ``Dispatcher.steal_min``: pending jobs per holder from which a worker sets
             a held geometry up too (a very large value: never; for tasks that write a
             geometry's files into one shared folder).
-
-    Returns:
-        ``held``: the geometries each worker holds now.
 
     Raises:
         DataError: If the cluster has no workers.
@@ -328,7 +318,6 @@ def dispatch(
     finally:  # what each worker holds now, for the next batch (a diagnosis runs many)
         held.clear()
         held.update({w: plan.holds(w) for w in plan.workers})
-    return held
 
 
 class _Drive:
