@@ -10,16 +10,30 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from cad.general_params import GeneralHingeParams
 from fe.cycle.protocol import CycleSettings
 from mesh.settings import MeshSettings
 from model.spec import ModelSpec
+from validation.candidate_fit import DiagnoseSettings
 from validation.measurements import MeasurementSet, read_measurement_set
 from validation.synth import SynthSettings, design_cases, synthesize
 
 HIDDEN = {"roughness_softening": {"compliance_mm3_per_n": 2e-4}}
 """The effect the data hold and the model does not."""
+
+
+def search_settings(**extra: Any) -> DiagnoseSettings:
+    """Both tests' search: a small grid, few refinement runs, the data's increments."""
+    return DiagnoseSettings(
+        grid_points=5,
+        grid_decades=2.5,
+        refine_iter=4,
+        increments_per_stage=6,
+        clearance_increments=12,
+        **extra,
+    )
 
 
 def coarse_data_and_finer_model(

@@ -127,19 +127,13 @@ def test_calibrate_fits_its_grid_coarse_to_fine_and_its_ledger_is_the_models_mes
 
     import validation.calibrate as calibration
     from mesh.settings import MeshSettings
-    from validation.candidate_fit import DiagnoseSettings, chi2, measured_features
+    from validation.candidate_fit import chi2, measured_features
     from validation.evaluate import ModelEvaluator
 
-    from .screen_data import coarse_data_and_finer_model
+    from .screen_data import coarse_data_and_finer_model, search_settings
 
     model, data = coarse_data_and_finer_model(tmp_path, (100.0, 400.0), seed=41)
-    settings = DiagnoseSettings(
-        grid_points=5,
-        grid_decades=2.5,
-        refine_iter=4,
-        increments_per_stage=6,
-        clearance_increments=12,
-    )
+    settings = search_settings()
     screens = []
     original = calibration.screen_evaluator
 

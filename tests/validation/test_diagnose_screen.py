@@ -37,21 +37,14 @@ def test_a_default_mesh_is_screened_on_its_kinds_coarse_preset(kind):
 
 @pytest.mark.slow
 def test_screened_and_plain_diagnoses_agree_and_the_screen_saves_model_cycles(tmp_path):
-    from validation.candidate_fit import DiagnoseSettings, chi2, measured_features
+    from validation.candidate_fit import chi2, measured_features
     from validation.diagnose import diagnose
     from validation.evaluate import ModelEvaluator
 
-    from .screen_data import coarse_data_and_finer_model
+    from .screen_data import coarse_data_and_finer_model, search_settings
 
     model, data = coarse_data_and_finer_model(tmp_path, (100.0, 250.0, 400.0), seed=31)
-    base = DiagnoseSettings(
-        grid_points=5,
-        grid_decades=2.5,
-        refine_iter=4,
-        increments_per_stage=6,
-        clearance_increments=12,
-        candidates=("roughness_softening", "tangential_compliance"),
-    )
+    base = search_settings(candidates=("roughness_softening", "tangential_compliance"))
     plain = diagnose(model, data, dataclasses.replace(base, screen=False))
     screened = diagnose(model, data, base)
     assert screened.stats["screen_cycles"] > 0
