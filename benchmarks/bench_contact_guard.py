@@ -24,16 +24,13 @@ times the recorded ones (a longer Newton path is the regression a loaded machine
 prints the table and exits with status 1 when a bound is broken (not a timed test: the fast
 suite must not depend on the machine's load).
 
-The bounds were recorded with one OpenBLAS and MKL thread everywhere but for the contact
-phase's large dense LUs and products, on two (``HINGELAB_LU_THREADS``, then the default).
-The script sets those conditions unless the variables are set: ``OPENBLAS_NUM_THREADS`` and
-``MKL_NUM_THREADS`` 1, ``HINGELAB_LU_THREADS`` 2 (``=1`` measures today's default, one
-thread, which costs level 1 at zero clearance ~13 % of its contact phase; see
-bench_contact_guard.txt, session 22). The large products are shared among the job's cores
-by fixed chunks since session 23 (``fe.linalg.threads.job_cores``: the machine's unless
-``OMP_NUM_THREADS`` caps them), so leave ``OMP_NUM_THREADS`` unset for the record's two.
+The bounds were recorded with two threads for the contact phase's large dense LUs and
+products (``HINGELAB_LU_THREADS``, then the default): the script sets 2 unless the variable
+is set (``HINGELAB_LU_THREADS=1`` measures today's default, one thread, which costs level 1
+at zero clearance ~13 % of its contact phase; see bench_contact_guard.txt, session 22).
 
-Run: .venv/bin/python benchmarks/bench_contact_guard.py [--levels 0,1] [--repeat N]
+Run: OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 .venv/bin/python benchmarks/bench_contact_guard.py
+[--levels 0,1] [--repeat N]
 """
 
 from __future__ import annotations
@@ -49,7 +46,6 @@ from _common import print_table, run_isolated
 from bench_cycle import case
 
 from fe.contact.dense import LU_THREADS_ENV
-from fe.linalg.threads import job_cores
 
 BOUNDS = {(0, 0.0): 3.5, (1, 0.0): 2.7, (0, 0.1): 1.5, (1, 0.1): 1.5}
 """(refinement level, clearance Δr [mm]) → the largest allowed cycle/floor."""
@@ -71,19 +67,14 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     levels = [int(v) for v in args.levels.split(",")]
     # the records (bench_cycle_levels_0-1.txt) ran with one BLAS/MKL thread everywhere but
-    # for the large dense LUs and products, on two (the default then; the LUs take one since
+    # for the large dense LUs and products, on two (the default then; it is one since
     # session 22, so that a job's numbers do not depend on where it runs): the bounds are
     # judged under the record's conditions, HINGELAB_LU_THREADS=1 shows the default's cost
-    for var, value in (
-        ("OPENBLAS_NUM_THREADS", "1"),
-        ("MKL_NUM_THREADS", "1"),
-        (LU_THREADS_ENV, "2"),
-    ):
+    for var, value in (("OMP_NUM_THREADS", "1"), ("MKL_NUM_THREADS", "1"), (LU_THREADS_ENV, "2")):
         os.environ.setdefault(var, value)
     print(f"load average before: {' '.join(f'{v:.2f}' for v in os.getloadavg())}; "
-          f"OpenBLAS/MKL threads {os.environ['OPENBLAS_NUM_THREADS']}/"
-          f"{os.environ['MKL_NUM_THREADS']}, LU threads {os.environ[LU_THREADS_ENV]}, "
-          f"product cores {job_cores()}", flush=True)  # fmt: skip
+          f"OMP/MKL threads {os.environ['OMP_NUM_THREADS']}/{os.environ['MKL_NUM_THREADS']}, "
+          f"LU threads {os.environ[LU_THREADS_ENV]}", flush=True)  # fmt: skip
     rows = []
     for (level, clearance), bound in BOUNDS.items():
         if level not in levels:

@@ -16,10 +16,9 @@ from typing import Any, NamedTuple
 import numpy as np
 import numpy.typing as npt
 import scipy.linalg as sla
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController, threadpool_limits
 
 from cad.errors import ParameterError
-from fe.linalg.threads import chunked_product
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -37,25 +36,32 @@ spins from a product). A large LU is compute-bound and gains. Chosen by measurem
 
 
 PRODUCT_THREADED_MIN = 1_000_000
-"""Products with a dense matrix of at least this many entries are shared among the job's
-cores (:func:`product`). They are memory-bound and a second core doubles the bandwidth.
+"""Products with a dense matrix of at least this many entries run on :func:`lu_threads`
+threads (:func:`wide`). They are memory-bound and a second core doubles the bandwidth.
 Chosen by measurement (benchmarks/bench_cycle.txt, 'PRODUCT_THREADED_MIN')."""
 
+_CONTROLLER: list[ThreadpoolController] = []
 
-def product(
-    M: npt.NDArray[np.floating[Any]], y: npt.NDArray[np.floating[Any]]
-) -> npt.NDArray[np.floating[Any]]:
-    """``M @ y``; from ``PRODUCT_THREADED_MIN`` entries by fixed row chunks on the job's cores.
 
-    The chunked product (:func:`fe.linalg.threads.chunked_product`) has the bits of the
-    one-thread product whatever the core count, so it needs no thread setting: in process
-    it takes the machine's cores, on a one-thread Dask worker one, with the same numbers
-    (OpenBLAS's own threads did not: n = 1 500 and 5 100, 1e-13 apart on 1 and 2 threads).
-    Below the threshold, the plain product on the caller's BLAS threads.
+def wide(entries: int, threads: int | None = None) -> contextlib.AbstractContextManager[object]:
+    """BLAS threads for one product with a dense matrix of ``entries`` entries.
+
+    ``lu_threads(threads)`` threads from ``PRODUCT_THREADED_MIN`` entries, else the
+    caller's setting unchanged: one by default, since a matrix-vector product's bits
+    depend on OpenBLAS's thread count too (n = 1 500 and 5 100: 1e-13 apart on 1 and 2
+    threads; n = 2 000 and 3 000 the same). The controller is made on first use (by then
+    numpy's and scipy's BLAS are loaded) and switching costs ~10 µs, against
+    milliseconds a product.
     """
-    if M.size < PRODUCT_THREADED_MIN:
-        return M @ y
-    return chunked_product(M, y)
+    n = lu_threads(threads) if entries >= PRODUCT_THREADED_MIN else 1
+    if n <= 1:
+        return contextlib.nullcontext()
+    if not _CONTROLLER:
+        _CONTROLLER.append(ThreadpoolController())
+    limit: contextlib.AbstractContextManager[object] = _CONTROLLER[0].limit(
+        limits=n, user_api="blas"
+    )
+    return limit
 
 
 def lu_threads_from_env() -> int:
@@ -79,8 +85,7 @@ def lu_threads(setting: int | None = None) -> int:
     LU depends on its thread count in the last bits (n = 3 000: factors 9e-13 apart on 1
     and 2 threads; one default-mesh cycle's contact pressures 1.7e-12 apart), and a
     difference in the last bits can change a Newton path, so a job's numbers would
-    depend on where it ran (issue 35). (The large products need no such setting:
-    :func:`product`.) Measured cost of one
+    depend on where it ran (issue 35). The large products (:func:`wide`) take the same count. Measured cost of one
     thread against two: none at the default mesh (the 6-case general diagnosis 118 s
     against 127 s; the default cycle 13.4 s against 12.7-14.6 s); at level 1 the contact
     phase gains from a second thread (zero clearance: 76.8 → 69.9 s from the products,

@@ -66,12 +66,12 @@ def krylov_step(
     # The closed set is the trial's (no forced points here): gather the block first, so
     # that the right-hand side's W s comes from it.
     block = ensure_block(prob, np.flatnonzero(it.law.status != ContactStatus.OPEN), ws)
-    lin = linearise(prob, it, r, w_times=lambda x: block_product(prob, ws, x))
+    lin = linearise(prob, it, r, w_times=lambda x: block_product(prob, ws, x, threads))
     n = len(lin.keys)
     r_bar = float(np.mean(r))
     krylov = ws.base is not None and not ws.refresh and n >= opts.min_size and n > 0
     if krylov or n >= opts.single_min:
-        ops = operators(prob, lin, ws, block=block)
+        ops = operators(prob, lin, ws, threads, block)
         if krylov:
             step = _gmres_step(it, lin, ops, ws, opts, cut, r_bar, tol, refresh_after=True)
             if step is not None:

@@ -18,7 +18,7 @@ import numpy.typing as npt
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from fe.contact.dense import factor_jacobian, gather_block, is_subset, lu_solve, product
+from fe.contact.dense import factor_jacobian, gather_block, is_subset, lu_solve, wide
 from fe.contact.krylov import Base, KrylovOptions, Workspace
 from fe.contact.newton import Linear
 from fe.contact.residual import Problem, sparse_product
@@ -40,6 +40,7 @@ class Operators(NamedTuple):
     R_b: sp.csr_array
     T_b: sp.csr_array
     d: FloatArray
+    threads: int | None = None
 
 
 def ensure_block(prob: Problem, closed: IntArray, ws: Workspace) -> IntArray:
@@ -58,18 +59,21 @@ def ensure_block(prob: Problem, closed: IntArray, ws: Workspace) -> IntArray:
     return block
 
 
-def block_product(prob: Problem, ws: Workspace, x: FloatArray) -> FloatArray:
+def block_product(
+    prob: Problem, ws: Workspace, x: FloatArray, threads: int | None = None
+) -> FloatArray:
     """``W x`` on the DOFs of ``ws.block`` (zero elsewhere), x of shape (m, 3).
 
     The block part is a product with ``W_block``; the few points outside the block where
     ``x ≠ 0`` (points that just opened) add their rows of the symmetric ``W``.
     """
     if ws.W_block is None or ws.block is None:
-        return sparse_product(prob.W, x)
+        return sparse_product(prob.W, x, threads=threads)
     m = len(x)
     dofs = (3 * ws.block[:, None] + np.arange(3)).ravel()
     out = np.zeros(3 * m)
-    out[dofs] = product(ws.W_block, x[ws.block].ravel())
+    with wide(ws.W_block.size, threads):
+        out[dofs] = ws.W_block @ x[ws.block].ravel()
     outside = np.ones(m, dtype=bool)
     outside[ws.block] = False
     outside = np.flatnonzero(outside & np.any(x != 0.0, axis=1))
@@ -79,7 +83,7 @@ def block_product(prob: Problem, ws: Workspace, x: FloatArray) -> FloatArray:
         # contact phase's memory peak (benchmarks/bench_cycle.txt, 'block_product').
         x_out = np.zeros_like(x)
         x_out[outside] = x[outside]
-        out[dofs] += sparse_product(prob.W, x_out)[dofs]
+        out[dofs] += sparse_product(prob.W, x_out, threads=threads)[dofs]
     return out
 
 
@@ -87,6 +91,7 @@ def operators(
     prob: Problem,
     lin: Linear,
     ws: Workspace,
+    threads: int | None = None,
     block: IntArray | None = None,
 ) -> Operators:
     """The Krylov operators of ``lin`` on ``ws``'s ``W`` block.
@@ -99,8 +104,8 @@ def operators(
     W_b = prob.W if ws.W_block is None else ws.W_block
     dofs = (3 * block[:, None] + np.arange(3)).ravel()
     if len(dofs) == prob.W.shape[0]:
-        return Operators(block, W_b, lin.R, lin.T, lin.d)
-    return Operators(block, W_b, lin.R[:, dofs], lin.T[dofs, :], lin.d)
+        return Operators(block, W_b, lin.R, lin.T, lin.d, threads)
+    return Operators(block, W_b, lin.R[:, dofs], lin.T[dofs, :], lin.d, threads)
 
 
 def _block_fits(block: IntArray, closed: IntArray, m: int) -> bool:
@@ -113,7 +118,8 @@ def _block_fits(block: IntArray, closed: IntArray, m: int) -> bool:
 def _apply(ops: Operators, X: FloatArray) -> FloatArray:
     """``J X`` for X of shape (n_q,) or (n_q, p) (float32 products if ``W_b`` is float32)."""
     y = ops.T_b @ X
-    Wy = np.asarray(product(ops.W_b, y.astype(ops.W_b.dtype, copy=False)), dtype=np.float64)
+    with wide(ops.W_b.size, ops.threads):
+        Wy = np.asarray(ops.W_b @ y.astype(ops.W_b.dtype, copy=False), dtype=np.float64)
     out: FloatArray = ops.R_b @ Wy
     return out + (ops.d * X.T).T
 

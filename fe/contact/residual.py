@@ -14,9 +14,8 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from fe.contact.dense import PRODUCT_THREADED_MIN, product, runs
+from fe.contact.dense import runs, wide
 from fe.contact.law import CoulombStep, coulomb_step
-from fe.linalg.threads import in_chunks
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -142,20 +141,21 @@ def evaluate(
     return Iterate(p, alpha, w, g, law, C, eq, merit, rho, Wp)
 
 
-def sparse_product(W: FloatArray, x: FloatArray, symmetric: bool = True) -> FloatArray:
+def sparse_product(
+    W: FloatArray, x: FloatArray, symmetric: bool = True, threads: int | None = None
+) -> FloatArray:
     """Return ``W x`` from the rows (symmetric ``W``) of the points where ``x ≠ 0``.
 
     The rows are read in runs of consecutive points, as slices (views): gathering them
     with an index array copies them first, which on a large ``W`` with half of them
     nonzero costs more than the full product, where the runs cost less. Timings:
-    benchmarks/bench_contact_profile.txt, 'sparse_product'. A large product is shared
-    among the job's cores by fixed chunks, of rows (:func:`fe.contact.dense.product`) or
-    of the runs' columns, with the same bits on any core count.
+    benchmarks/bench_contact_profile.txt, 'sparse_product'.
 
     Args:
         W: Matrix, shape (3m, 3m), float64.
         x: Per-point vector, shape (m, 3), float64; typically nonzero on few points.
         symmetric: Whether ``W`` is symmetric (else the plain product is taken).
+        threads: BLAS threads of a large product (:func:`fe.contact.dense.wide`).
 
     Returns:
         ``W x`` flattened, shape (3m,), float64.
@@ -165,22 +165,17 @@ def sparse_product(W: FloatArray, x: FloatArray, symmetric: bool = True) -> Floa
         return small
     support = np.flatnonzero(np.any(x != 0.0, axis=1))
     if not symmetric or 4 * len(support) > 3 * len(x):  # the runs would read most of W
-        out: FloatArray = np.asarray(product(W, x.ravel()), dtype=np.float64)
+        with wide(W.size, threads):
+            out: FloatArray = W @ x.ravel()
         return out
     # W symmetric: W x = Σ_j x_j W[j, :] over the nonzero x_j, run by run.
     first, stop = runs(support)
     starts, ends = support[first], support[stop - 1] + 1
     flat = x.ravel()
     rows = np.zeros(W.shape[1])
-
-    def columns(c: int, e: int) -> None:  # this chunk of columns, every run
+    with wide(3 * len(support) * W.shape[1], threads):
         for a, b in zip(3 * starts, 3 * ends, strict=True):
-            rows[c:e] += flat[a:b] @ W[a:b, c:e]
-
-    if 3 * len(support) * W.shape[1] < PRODUCT_THREADED_MIN:
-        columns(0, W.shape[1])
-    else:
-        in_chunks(W.shape[1], columns)
+            rows += flat[a:b] @ W[a:b]
     return rows
 
 

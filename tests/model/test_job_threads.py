@@ -6,8 +6,7 @@ counts make in the last bits (PARDISO's factor, OpenBLAS's kernels) can change a
 Newton path (session 21: the paper's validation in process and on 2 workers, a held-out
 χ² 3e-4 apart). The job runs
 OpenBLAS on one thread and PARDISO factorises on one (``fe.linalg.threads``,
-``fe.linalg.sparse``); the contact phase's large products are shared among the job's
-cores by fixed chunks (``fe.linalg.threads.chunked_product``).
+``fe.linalg.sparse``).
 """
 
 from __future__ import annotations
@@ -63,23 +62,3 @@ def test_a_cycle_does_not_depend_on_the_cycles_run_before_it_on_its_geometry():
     after = service.run_point(spec, point)
 
     np.testing.assert_equal(_signature(after), _signature(fresh))
-
-
-def test_a_zero_clearance_cycle_gives_the_same_bits_on_one_and_two_job_cores(monkeypatch):
-    """The contact phase's large products are shared among the job's cores (in process the
-    machine's, on a worker its share, read from ``OMP_NUM_THREADS``) by fixed chunks, so
-    the cycle's numbers do not depend on how many: here ``W`` has 1 224 rows, above
-    ``PRODUCT_THREADED_MIN``, and the chunks run on two threads when given two cores."""
-    from fe.contact.dense import PRODUCT_THREADED_MIN
-
-    cycle = CycleSettings(increments_per_stage=6, clearance_increments=6)
-    spec = ModelSpec("general", GeneralHingeParams(), MeshSettings.coarse(), cycle)
-    point = DesignPoint(300.0, {"clearance_mm": 0.0})
-    runs = []
-    for cores in ("1", "2"):
-        monkeypatch.setenv("OMP_NUM_THREADS", cores)
-        runs.append(ModelService().run_point(spec, point))
-
-    assert (3 * len(runs[0].states[-1].p)) ** 2 >= PRODUCT_THREADED_MIN
-    np.testing.assert_equal(_signature(runs[0]), _signature(runs[1]))
-    np.testing.assert_equal(runs[0].metrics(), runs[1].metrics())

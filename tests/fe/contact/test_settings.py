@@ -50,28 +50,27 @@ def test_factor_uses_the_given_thread_count(monkeypatch):
     assert threadpool_info()  # the BLAS is visible to threadpoolctl
 
 
-def test_large_products_are_chunked_small_ones_plain(monkeypatch):
-    """From ``PRODUCT_THREADED_MIN`` entries a product goes to the job's cores by chunks."""
-    calls = []
-    real = contact_dense.chunked_product
-
-    def spy(M, y):  # type: ignore[no-untyped-def]
-        calls.append(M.size)
-        return real(M, y)
-
-    monkeypatch.setattr(contact_dense, "chunked_product", spy)
-    side = int(np.ceil(np.sqrt(contact_dense.PRODUCT_THREADED_MIN)))
-    M = np.random.default_rng(1).standard_normal((side, side))
-    y = np.ones(side)
-    np.testing.assert_allclose(contact_dense.product(M, y), M @ y, rtol=1e-12)
-    np.testing.assert_allclose(contact_dense.product(M[:-2], y), M[:-2] @ y, rtol=1e-12)
-    assert calls == [M.size]  # the one at or above the threshold
+def _blas_threads():
+    return {i["filepath"]: i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
 
 
-@pytest.mark.parametrize("half", [True, False], ids=["runs", "whole"])
-def test_large_products_give_the_same_bits_on_one_and_two_cores(monkeypatch, half):
-    """A large ``W x`` is shared among the job's cores by fixed chunks (rows, or the runs'
-    columns): the same bits on one core as on two, and ``W x`` to round-off."""
+def test_large_products_run_on_the_lu_threads_small_ones_on_the_callers():
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        outside = _blas_threads()
+        with contact_dense.wide(contact_dense.PRODUCT_THREADED_MIN, threads=2):
+            assert set(_blas_threads().values()) == {2}
+        with contact_dense.wide(contact_dense.PRODUCT_THREADED_MIN - 1, threads=2):
+            assert _blas_threads() == outside
+        with contact_dense.wide(contact_dense.PRODUCT_THREADED_MIN, threads=1):
+            assert _blas_threads() == outside
+        assert _blas_threads() == outside  # restored on leaving
+    assert set(outside.values()) == {1}
+
+
+def test_products_give_the_same_numbers_on_two_threads():
+    """A threaded product may sum in another order: equal to round-off, not bitwise."""
     from fe.contact.residual import sparse_product
 
     rng = np.random.default_rng(3)
@@ -79,15 +78,9 @@ def test_large_products_give_the_same_bits_on_one_and_two_cores(monkeypatch, hal
     W = rng.standard_normal((3 * n, 3 * n))
     W = 0.5 * (W + W.T)
     x = np.zeros((n, 3))
-    k = n // 2 if half else n
-    x[rng.choice(n, k, replace=False)] = rng.standard_normal((k, 3))
-    got = {}
-    for cores in ("1", "2", "3"):
-        monkeypatch.setenv("OMP_NUM_THREADS", cores)
-        got[cores] = sparse_product(W, x)
-    assert np.array_equal(got["1"], got["2"])
-    assert np.array_equal(got["1"], got["3"])
-    np.testing.assert_allclose(got["2"], W @ x.ravel(), rtol=0, atol=1e-11)
+    x[rng.choice(n, n // 2, replace=False)] = rng.standard_normal((n // 2, 3))
+    np.testing.assert_allclose(sparse_product(W, x, threads=2), W @ x.ravel(), atol=1e-10)
+    np.testing.assert_allclose(sparse_product(W, x, threads=1), W @ x.ravel(), atol=1e-10)
 
 
 def _counted_sums(monkeypatch, W):

@@ -9,9 +9,6 @@ solves, most of the time of a condensation, keep MKL's threads.
 from __future__ import annotations
 
 import contextlib
-import os
-import threading
-import time
 
 import numpy as np
 import pytest
@@ -19,7 +16,6 @@ import scipy.sparse as sp
 from threadpoolctl import ThreadpoolController
 
 from fe.linalg import sparse
-from fe.linalg import threads as job
 from fe.linalg.sparse import Factorization, LinearSolverBackend, inverse_block
 
 
@@ -107,46 +103,3 @@ def test_blocks_solved_in_parallel_are_bitwise_those_of_a_plain_loop(mkl):
 
     assert len(solvers) == 2  # two handles, one per thread
     assert np.array_equal(out, plain)
-
-
-@pytest.mark.parametrize("dtype", [np.float64, np.float32])
-@pytest.mark.parametrize("p", [None, 3])
-def test_a_chunked_product_has_the_one_thread_bits_on_any_core_count(monkeypatch, dtype, p):
-    """``chunked_product`` shares fixed row chunks among the job's cores: on 1, 2 and 3
-    cores the same bits (for a vector those of the plain one-thread product; a block may
-    round differently from it), and the chunks do run on two threads."""
-    rng = np.random.default_rng(6)
-    n = 3 * job.CHUNK_ROWS + 17  # a short last chunk
-    M = rng.standard_normal((n, n)).astype(dtype)
-    y = rng.standard_normal(n if p is None else (n, p)).astype(dtype)
-    with ThreadpoolController().limit(limits=1, user_api="blas"):
-        plain = M @ y
-    got = []
-    for cores in ("1", "2", "3"):
-        monkeypatch.setenv("OMP_NUM_THREADS", cores)
-        got.append(job.chunked_product(M, y))
-    assert all(np.array_equal(got[0], g) for g in got[1:])
-    if p is None:
-        assert np.array_equal(got[0], plain)
-    else:
-        eps = np.finfo(dtype).eps
-        np.testing.assert_allclose(got[0], plain, rtol=0, atol=200 * eps * np.abs(plain).max())
-
-    monkeypatch.setenv("OMP_NUM_THREADS", "2")
-    seen = set()
-
-    def note(s: int, e: int) -> None:
-        seen.add(threading.get_ident())
-        time.sleep(0.02)  # long enough that the other thread takes the next chunk
-
-    job.in_chunks(n, note)
-    assert len(seen) == min(2, job.job_cores())
-
-
-def test_job_cores_takes_a_workers_share_from_omp_num_threads(monkeypatch):
-    monkeypatch.setenv("OMP_NUM_THREADS", "1")
-    assert job.job_cores() == 1
-    monkeypatch.setenv("OMP_NUM_THREADS", "not a number")
-    assert job.job_cores() >= 1
-    monkeypatch.delenv("OMP_NUM_THREADS")
-    assert job.job_cores() == len(os.sched_getaffinity(0))
