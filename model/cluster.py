@@ -13,8 +13,10 @@ of many jobs runs on every worker, each setting it up once. A worker computes th
 cycle and sends it back without the condensed operators; the calling process stores it
 (``model.store.ResultStore``) the moment it arrives, so an interrupted run keeps what
 finished and a rerun computes only the rest. The worker runs the same code as the
-in-process service, so the numbers are the same. ``dispatch`` is that loop on its own, for
-other tasks (``studies.sweep_dask``: a sweep's points, whose workers write their files).
+in-process service, so the numbers are the same; ``dispatch`` checks that it does
+(``other_code``: hingelab's source digest, version and libraries, ``model.code``).
+``dispatch`` is that loop on its own, for other tasks (``studies.sweep_dask``: a sweep's
+points, whose workers write their files).
 
 A user's effect from a file travels with the spec (``ModelSpec.effect_sources``) and is
 registered on the worker when the spec is unpickled. A plug-in hinge kind must be
@@ -34,6 +36,7 @@ from typing import Any
 
 from cad.errors import DataError, check_range
 from fe.cycle.result import CycleResult
+from model.code import ALL_PACKAGES, CodeVersion, code_version
 from model.dispatch import Dispatcher
 from model.spec import DesignPoint, ModelSpec, geometry_key, point_label
 
@@ -172,6 +175,44 @@ def _worker_service() -> Any:
     return _WORKER_SERVICE["service"]
 
 
+def worker_code() -> CodeVersion:
+    """The code this process runs (on a worker: ``Client.run``), as ``model.code`` sees it."""
+    return code_version(ALL_PACKAGES)
+
+
+def other_code(client: Any, workers: Sequence[str]) -> dict[str, list[str]]:
+    """The workers among ``workers`` that run other code than this process, and how it differs.
+
+    A worker's cycle is stored under this process's result key, which holds this
+    process's code (``model.code.code_version``); a worker with another hingelab, other
+    source files or other library versions would store its numbers as this code's.
+
+    Raises:
+        DataError: If the workers cannot say (hingelab not importable there).
+    """
+    if not workers:
+        return {}
+    here = worker_code()
+    try:
+        there = client.run(worker_code, workers=list(workers))
+    except Exception as err:  # the worker's import error, re-raised here by Dask
+        raise DataError(
+            f"the Dask workers cannot report which hingelab they run ({type(err).__name__}: "
+            f"{err}): install hingelab on every worker"
+        ) from err
+    return {w: here.differences(v) for w, v in sorted(there.items()) if v != here}
+
+
+def _code_error(wrong: dict[str, list[str]]) -> DataError:
+    w, why = next(iter(wrong.items()))
+    more = f" (and {len(wrong) - 1} other worker(s))" if len(wrong) > 1 else ""
+    return DataError(
+        f"Dask worker {w}{more} runs other code than this process ({'; '.join(why)}): its "
+        "cycles would be stored as this code's; install the same hingelab and libraries "
+        "on every worker (`hingelab --version` prints the source digest)"
+    )
+
+
 def run_job(spec: ModelSpec, point: DesignPoint) -> CycleResult:
     """Run one point on a worker (its geometry reused across the worker's jobs).
 
@@ -298,12 +339,16 @@ def dispatch(
             geometry's files into one shared folder).
 
     Raises:
-        DataError: If the cluster has no workers.
+        DataError: If the cluster has no workers, or a worker runs other code than this
+            process (``other_code``).
     """
     held = {} if held is None else held
     workers = client.scheduler_info()["workers"]
     if not workers:
         raise DataError("the Dask cluster has no workers")
+    wrong = other_code(client, sorted(workers))
+    if wrong:
+        raise _code_error(wrong)
     plan = Dispatcher(
         [geometry_key(spec, p) for spec, p in jobs],
         steal_min=steal_min,
@@ -336,6 +381,7 @@ class _Drive:
         self.args = args
         self.running: dict[Any, tuple[int, str]] = {}  # future → (job, worker)
         self.polled = time.monotonic()
+        self.refused: set[str] = set()  # joined later, running other code
 
     def run(self) -> None:
         from dask.distributed import wait
@@ -380,8 +426,19 @@ class _Drive:
         """Take the workers that joined; give the jobs of those that left to the others."""
         self.polled = time.monotonic()
         now = self.client.scheduler_info()["workers"]
+        joined = [w for w in sorted(now) if w not in self.plan.workers and w not in self.refused]
+        try:
+            wrong = other_code(self.client, joined)
+        except DataError as err:  # a worker without hingelab: the run goes on without it
+            wrong = {w: [str(err)] for w in joined}
+        for w, why in wrong.items():
+            logger.warning(
+                "Dask worker %s joined running other code (%s): not used", w, "; ".join(why)
+            )
+            self.refused.add(w)
         for w in sorted(now):
-            self.plan.add_worker(w, now[w].get("nthreads", 1))
+            if w not in self.refused:
+                self.plan.add_worker(w, now[w].get("nthreads", 1))
         for w in [w for w in self.plan.workers if w not in now]:
             lost = [f for f, (_, at) in self.running.items() if at == w]
             self.client.cancel(lost)

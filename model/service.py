@@ -33,6 +33,7 @@ from fe.cycle.result import CycleResult
 from fe.kinds import Built
 from fe.linalg.threads import job_threads
 from mesh.meshed import MeshedHinge
+from model.code import code_version
 from model.spec import (
     DesignPoint,
     ModelSpec,
@@ -146,7 +147,8 @@ class ModelService:
 
     Args:
         store: Where results are kept by key (None: nothing is kept between runs).
-        cache_dir: Where nodal compliances are kept by mesh hash (None: in memory only).
+        cache_dir: Where nodal compliances are kept by mesh hash, in a subfolder per code
+            (``model.code.code_version``; None: in memory only).
         geometry_dir: Folder for a geometry's STEP, mesh and picture files, given its
             folder name (``model.spec.geometry_folder``, e.g. ``c0.100-5e6f7a8b9c``: the
             label and the geometry key; None: no files).
@@ -192,8 +194,14 @@ class ModelService:
             return self._prepared[key]
         t0 = time.perf_counter()
         out = None if self.geometry_dir is None else self.geometry_dir(geometry_folder(spec, point))
+        # cached compliances are the code's that computed them: one folder per code
+        cache = (
+            None
+            if self.cache_dir is None
+            else self.cache_dir / f"code-{code_version().digest()[:12]}"
+        )
         with job_threads():  # the same numbers in process as on a worker
-            built = spec.hinge_kind.build(structure_at(spec, point), spec.mesh, out, self.cache_dir)
+            built = spec.hinge_kind.build(structure_at(spec, point), spec.mesh, out, cache)
         prepared = Prepared(key, built)
         prepared.setup_s = time.perf_counter() - t0
         self.setup_s += prepared.setup_s

@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 import enum
 import hashlib
-import importlib.metadata
 import json
 import math
 import types
@@ -27,6 +26,7 @@ from fe.cycle.protocol import CycleSettings
 from fe.effects.plugins import EffectSource
 from fe.kinds import HingeKind, hinge_kind
 from mesh.settings import MeshSettings
+from model.code import CYCLE_PACKAGES, code_version, plugin_digest
 
 
 @dataclass(frozen=True)
@@ -229,14 +229,6 @@ def resolve_structural(spec: ModelSpec) -> ModelSpec:
     return dataclasses.replace(spec, hinge=hinge, cycle=cycle, effects=effects)
 
 
-def package_version() -> str:
-    """The installed hingelab version ("unknown" when run from a bare source tree)."""
-    try:
-        return importlib.metadata.version("hingelab")
-    except importlib.metadata.PackageNotFoundError:
-        return "unknown"
-
-
 def plain(obj: Any) -> Any:
     """Turn dataclasses, enums, mappings and tuples into JSON values, recursively.
 
@@ -272,9 +264,21 @@ def geometry_key(spec: ModelSpec, point: DesignPoint) -> str:
             "kind": spec.kind,
             "hinge": structure_at(spec, point),
             "mesh": spec.mesh,
-            "version": package_version(),
+            "code": code_version(),
+            "kind_code": kind_code(spec),
         }
     )
+
+
+def kind_code(spec: ModelSpec) -> str:
+    """SHA-256 of the code of a hinge kind that is not hingelab's own ("" for a built-in).
+
+    hingelab's kinds are keyed with the rest of its source (``model.code.code_version``); a
+    kind from another package, by that package's files (``model.code.plugin_digest``), so
+    editing a plug-in kind's mechanics recomputes its results too.
+    """
+    module = type(spec.hinge_kind).__module__
+    return "" if module.partition(".")[0] in CYCLE_PACKAGES else plugin_digest(module)
 
 
 def effect_code(spec: ModelSpec) -> dict[str, str]:
@@ -300,10 +304,15 @@ def result_key(spec: ModelSpec, point: DesignPoint) -> str:
     """Hash of everything that determines the cycle at ``point``.
 
     The whole specification (its own amplitude replaced by the point's), the design
-    point, the contact-solver defaults and the package version; a structure-changing
-    effect is keyed as the structure it makes (``resolve_structural``); an effect that
-    is not built in, by the hash of its source (``effect_code``).
+    point, the contact-solver defaults (with the LU threads ``HINGELAB_LU_THREADS`` gives,
+    which change a cycle's last bits) and the code (``model.code.code_version``:
+    hingelab's version, its computing packages' source, the libraries' versions); a
+    structure-changing effect is keyed as the structure it makes (``resolve_structural``);
+    an effect or a hinge kind that is not built in, by the hash of its source
+    (``effect_code``, ``kind_code``).
     """
+    from fe.contact.dense import lu_threads  # scipy.linalg: not for a model file's reading
+
     spec = resolve_structural(spec)
     cycle = dataclasses.replace(spec.cycle, amplitude_n=point.amplitude_n)
     return content_hash(
@@ -314,9 +323,11 @@ def result_key(spec: ModelSpec, point: DesignPoint) -> str:
             "cycle": cycle,
             "effects": spec.effects,
             "effect_code": effect_code(spec),
+            "kind_code": kind_code(spec),
             "point": complete_point(spec, point).key_fields(),
-            "contact": ContactSettings(),
-            "version": package_version(),
+            # the LU threads as this process resolves them (they change the last bits)
+            "contact": dataclasses.replace(ContactSettings(), lu_threads=lu_threads()),
+            "code": code_version(),
         }
     )
 

@@ -138,19 +138,16 @@ def record_command(
     import datetime as dt
     import json
     import shlex
-    from importlib import metadata
 
-    try:
-        version = metadata.version("hingelab")
-    except metadata.PackageNotFoundError:
-        version = "unknown"
+    from model.code import ALL_PACKAGES, code_version
+
     entry = {
         "command": shlex.join([*program, *argv]),
         "argv": list(argv),
         "cwd": os.getcwd(),
         "ended_utc": dt.datetime.now(dt.UTC).replace(microsecond=0).isoformat(),
         "exit_status": exit_status,
-        "version": version,
+        "version": code_version(ALL_PACKAGES).short(),
     }
     path = Path(folder) / COMMANDS_FILE
     with path.open("a", encoding="utf-8") as fh:

@@ -91,7 +91,8 @@ def lu_threads(setting: int | None = None) -> int:
     phase gains from a second thread (zero clearance: 76.8 → 69.9 s from the products,
     and a large LU n = 3 000: 0.82 → 0.50 s), so a user who runs one process on a finer
     mesh may ask for two, knowing the numbers then differ in the last bits from a
-    one-thread run.
+    one-thread run (so the count is part of a result's key, ``model.spec.result_key``:
+    a store filled with two threads is not read back as a one-thread run's).
 
     Args:
         setting: ``ContactSettings.lu_threads``; None means the environment variable

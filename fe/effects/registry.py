@@ -113,8 +113,9 @@ class Entry:
     Attributes:
         effect: The effect (its ``name`` is the registry name).
         origin: ``hingelab`` for a built-in; ``path:Class`` for a file; the entry point.
-        source_hash: SHA-256 of the source that defines it ("" for a built-in, which the
-            package version keys): part of every result key that uses it.
+        source_hash: SHA-256 of the source that defines it ("" for a built-in, which
+            hingelab's own source digest keys, ``model.code``): part of every result key
+            that uses it.
         source: The file it was loaded from (None for a built-in or an entry point).
     """
 

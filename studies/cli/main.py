@@ -13,6 +13,7 @@ import importlib
 import logging
 import sqlite3
 import sys
+from typing import Any
 
 from cad.errors import HingelabError
 
@@ -45,7 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "-v", "--verbose", action="store_true", help="log progress (and Dask's logs) to stderr"
     )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in SUBCOMMAND_MODULES:
         importlib.import_module(name).register(sub)
@@ -56,13 +57,23 @@ CHATTY_LIBRARIES = ("build123d", "matplotlib", "PIL", "pyvista", "numexpr")
 """Third-party loggers kept at WARNING even with -v (build123d logs every face it makes)."""
 
 
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
+class _Version(argparse.Action):
+    """``--version``: hingelab's version and its source digest, read only when asked."""
 
-    try:
-        return version("hingelab")
-    except PackageNotFoundError:
-        return "unknown (not installed)"
+    def __init__(self, option_strings: list[str], dest: str, **kwargs: Any) -> None:
+        super().__init__(
+            option_strings,
+            dest,
+            nargs=0,
+            default=argparse.SUPPRESS,
+            help="print hingelab's version and the digest of its source (model.code), and exit",
+        )
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: Any) -> None:
+        from model.code import ALL_PACKAGES, code_version
+
+        print(f"hingelab {code_version(ALL_PACKAGES).short()}")
+        parser.exit()
 
 
 def _os_message(err: OSError) -> str:

@@ -97,8 +97,9 @@ def current_threshold(
     """
     import json
 
+    from model.code import ALL_PACKAGES, code_version
     from model.jsonio import dumps
-    from model.spec import content_hash, package_version
+    from model.spec import content_hash
 
     inputs = {
         name: None
@@ -106,7 +107,9 @@ def current_threshold(
         else [list(s.x_names), s.coefficients.tolist(), s.center.tolist(), s.half_range.tolist()]
         for name, s in sorted(surfaces.items())
     }
-    digest = content_hash({"surfaces": inputs, "figure": figure, "version": package_version()})
+    digest = content_hash(
+        {"surfaces": inputs, "figure": figure, "code": code_version(ALL_PACKAGES)}
+    )
     stamp = out / "figures" / ".threshold.json"
     try:
         old = json.loads(stamp.read_text())

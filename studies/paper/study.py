@@ -210,13 +210,14 @@ def current_figures(
     A rerun with nothing changed spent most of its seconds redrawing the same surfaces
     (4 of 11 s, benchmarks/bench_rerun.txt). ``stamp`` records the inputs' content hash
     and the files, written after them: a figure missing, or a stamp from other inputs
-    (another table, degree or package version), draws again.
+    (another table, degree or code: ``model.code.code_version``), draws again.
     """
     import json
 
-    from model.spec import content_hash, package_version
+    from model.code import ALL_PACKAGES, code_version
+    from model.spec import content_hash
 
-    digest = content_hash({"inputs": inputs, "version": package_version()})
+    digest = content_hash({"inputs": inputs, "code": code_version(ALL_PACKAGES)})
     if stamp.is_file():
         try:
             old = json.loads(stamp.read_text())

@@ -24,10 +24,10 @@ import platform
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
-from importlib import metadata
 from pathlib import Path
 
 from cad.errors import DataError
+from model.code import ALL_PACKAGES, code_version
 from studies.outputs import recorded_commands
 from studies.report.paper import paper_study_report
 from studies.report.parts import CSS, Html, esc, join, kv_table, tag
@@ -86,7 +86,8 @@ class ReportMeta:
     """Where and when the page was made.
 
     Attributes:
-        version: hingelab's version (of the package that made the page).
+        version: hingelab's version and source digest (``model.code.CodeVersion.short``)
+            of the code that made the page.
         generated_utc: When the page was made (ISO 8601, UTC).
         run_utc: When the folder's main result file was last written (ISO 8601, UTC).
     """
@@ -117,14 +118,6 @@ def detect_kind(folder: Path) -> ReportKind:
     raise DataError(f"{folder}: {what}; expected one of: {expected_files()}")
 
 
-def package_version() -> str:
-    """Return the installed hingelab version, or ``unknown``."""
-    try:
-        return metadata.version("hingelab")
-    except metadata.PackageNotFoundError:
-        return "unknown"
-
-
 def _utc(ts: float | None = None) -> str:
     t = dt.datetime.now(dt.UTC) if ts is None else dt.datetime.fromtimestamp(ts, dt.UTC)
     return t.replace(microsecond=0).isoformat().replace("+00:00", "Z")
@@ -133,7 +126,7 @@ def _utc(ts: float | None = None) -> str:
 def report_meta(folder: Path, kind: ReportKind) -> ReportMeta:
     """Return the version, the time now and the time the folder's main file was written."""
     main = folder / _MAIN_FILE[kind]
-    return ReportMeta(package_version(), _utc(), _utc(main.stat().st_mtime))
+    return ReportMeta(code_version(ALL_PACKAGES).short(), _utc(), _utc(main.stat().st_mtime))
 
 
 def command_rows(folder: Path, made_by: str) -> list[tuple[str, object]]:

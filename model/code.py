@@ -1,0 +1,147 @@
+"""Which code computed a result: hingelab's version, a digest of its source, the libraries.
+
+A stored result is read back when its key matches (``model.spec.result_key``), so the key
+must change whenever the code that computes the cycle changes. The package version alone
+does not: it is 0.1.0 in every commit of a checkout (an editable install), so a result
+computed before a fix to the solver would have been read back after it. ``code_version``
+adds the SHA-256 of the computing packages' source files as installed and the versions of
+the libraries whose numbers enter a cycle (the mesher, the CAD kernel, the linear
+algebra). A Dask worker reports its own, and a cluster whose workers run other code is
+refused (``model.cluster.dispatch``): their cycles would be stored under this code's keys.
+
+Only the standard library is imported here: ``hingelab --version`` and a rerun read it.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.metadata
+import importlib.util
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from cad.errors import ParameterError
+
+CYCLE_PACKAGES = ("cad", "mesh", "fe", "model")
+"""The packages whose code makes a geometry, a mesh, a condensation or a cycle: their
+source keys every stored result and geometry. Editing ``rsm``, ``validation`` or
+``studies`` (reports, fits, verdicts, which are recomputed from the stored cycles on
+every run) does not throw the cycles away."""
+
+ALL_PACKAGES = (*CYCLE_PACKAGES, "rsm", "validation", "studies")
+"""Every package of the distribution: what a Dask worker must run the same of (a sweep's
+worker also writes the point's files) and what keys the paper's drawn figures."""
+
+CYCLE_LIBRARIES = ("build123d", "gmsh", "numpy", "scipy", "pypardiso", "mkl")
+"""Installed distributions whose numbers enter a cycle: the solids, the mesh, the dense
+and sparse linear algebra (PARDISO from the ``mkl`` wheel). Their versions key results."""
+
+
+@dataclass(frozen=True)
+class CodeVersion:
+    """The code a result was computed with.
+
+    Attributes:
+        version: hingelab's installed version ("unknown" from a bare source tree).
+        source: SHA-256 of the packages' Python files (path within the package and bytes,
+            in sorted order), hex.
+        libraries: (distribution, version) pairs, sorted; "absent" where not installed.
+    """
+
+    version: str
+    source: str
+    libraries: tuple[tuple[str, str], ...]
+
+    def short(self) -> str:
+        """``0.1.0+src.1a2b3c4d5e6f``: the version and the first 12 digits of the source."""
+        return f"{self.version}+src.{self.source[:12]}"
+
+    def digest(self) -> str:
+        """SHA-256 of all three fields, hex: one name for this code (a cache folder's)."""
+        text = "\n".join([self.version, self.source, *(f"{n} {v}" for n, v in self.libraries)])
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    def differences(self, other: CodeVersion) -> list[str]:
+        """What differs from ``other``, one phrase each (empty when the same)."""
+        out = []
+        if self.version != other.version:
+            out.append(f"hingelab {self.version} against {other.version}")
+        if self.source != other.source:
+            out.append(f"source {self.source[:12]} against {other.source[:12]}")
+        mine, theirs = dict(self.libraries), dict(other.libraries)
+        for name in sorted({*mine, *theirs}):
+            if mine.get(name) != theirs.get(name):
+                out.append(
+                    f"{name} {mine.get(name, 'absent')} against {theirs.get(name, 'absent')}"
+                )
+        return out
+
+
+def package_version() -> str:
+    """The installed hingelab version ("unknown" when run from a bare source tree)."""
+    try:
+        return importlib.metadata.version("hingelab")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def _library_version(name: str) -> str:
+    try:
+        return importlib.metadata.version(name)
+    except importlib.metadata.PackageNotFoundError:
+        return "absent"
+
+
+@functools.cache
+def source_digest(packages: tuple[str, ...] = CYCLE_PACKAGES) -> str:
+    """SHA-256 of the Python source of ``packages`` where this process imports them from.
+
+    Read once per process (about 10 ms for the cycle packages' ~1 MB): a file edited while
+    a process runs keys that process's results as the code it started with, which is the
+    code it runs.
+
+    Raises:
+        ParameterError: For a name that is not an importable package.
+    """
+    h = hashlib.sha256()
+    for name in packages:
+        spec = importlib.util.find_spec(name)
+        if spec is None or not spec.submodule_search_locations:
+            raise ParameterError(f"packages: {name!r} is not an importable package")
+        for root in sorted(Path(p) for p in spec.submodule_search_locations):
+            for path in sorted(root.rglob("*.py")):
+                rel = path.relative_to(root.parent).as_posix()
+                h.update(rel.encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+@functools.cache
+def plugin_digest(module: str) -> str:
+    """SHA-256 of the code of a plug-in's top-level package (or module) ``module`` belongs to.
+
+    A hinge kind from another distribution (an entry point) is keyed by its own code, as
+    ``code_version`` keys hingelab's: all files of its top-level package, or its one file.
+
+    Raises:
+        ParameterError: If the module's top level cannot be found.
+    """
+    top = module.partition(".")[0]
+    try:
+        spec = importlib.util.find_spec(top)
+    except (ImportError, ValueError):  # __main__ of a script, a module without a spec
+        spec = None
+    if spec is not None and spec.submodule_search_locations:
+        return source_digest((top,))
+    origin = spec.origin if spec is not None else getattr(sys.modules.get(module), "__file__", None)
+    if not origin or not Path(origin).is_file():
+        raise ParameterError(f"plug-in module {module!r}: its source cannot be found")
+    return hashlib.sha256(Path(origin).read_bytes()).hexdigest()
+
+
+@functools.cache
+def code_version(packages: tuple[str, ...] = CYCLE_PACKAGES) -> CodeVersion:
+    """The version, the digest of ``packages``' source and the cycle libraries' versions."""
+    libraries = tuple(sorted((n, _library_version(n)) for n in CYCLE_LIBRARIES))
+    return CodeVersion(package_version(), source_digest(packages), libraries)
