@@ -5,12 +5,14 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out/demo
 
-.PHONY: demo test test-all lint bench clean crosscheck peers
+.PHONY: demo test test-all lint bench clean crosscheck peers lock
 
-$(STAMP): pyproject.toml
+# The versions are pinned (constraints.txt): a fresh machine computes with the libraries the
+# records were made with (the mesher's and CAD kernel's versions move nodes, so numbers).
+$(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[dev]'
+	$(BIN)/pip install --quiet -c constraints.txt -e '.[dev]'
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -42,6 +44,16 @@ peers:
 # Our loops against CalculiX on the same mesh (docs/calculix_crosscheck.md).
 crosscheck: $(STAMP) peers
 	$(BIN)/python -m pytest -q -m "slow or not slow" tests/fe/interop/test_inp.py tests/fe/interop/test_ccx_crosscheck.py
+
+# Resolve pyproject.toml's ranges anew into constraints.txt, in a scratch venv (an upgrade:
+# run `make test-all` and the benchmarks after it, and record that the numbers moved).
+LOCK_VENV := .venv-lock
+lock:
+	rm -rf $(LOCK_VENV) && $(PYTHON) -m venv $(LOCK_VENV)
+	$(LOCK_VENV)/bin/pip install --quiet --upgrade pip
+	$(LOCK_VENV)/bin/pip install --quiet -e '.[dev]'
+	{ sed -n '/^#/p' constraints.txt; $(LOCK_VENV)/bin/pip freeze --exclude-editable; } > constraints.txt.new
+	mv constraints.txt.new constraints.txt && rm -rf $(LOCK_VENV)
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -4,8 +4,9 @@ A ``ModelSpec`` is everything a ``MODEL.toml`` holds (hinge kind and parameters 
 their materials, mesh settings, load protocol and solver options with μ, effects). A
 ``DesignPoint`` is what a study varies (the amplitude and the kind's design variables, e.g.
 the clearance). ``result_key`` hashes
-both, the package version and the contact-solver defaults into one SHA-256: two runs with
-the same key give the same numbers, and any changed input gives another key.
+both, the code (``model.code.code_version``) and the contact-solver defaults into one
+SHA-256: two runs with the same key give the same numbers, and any changed input or code
+gives another key.
 """
 
 from __future__ import annotations
