@@ -98,9 +98,10 @@ def _library_version(name: str) -> str:
 def source_digest(packages: tuple[str, ...] = CYCLE_PACKAGES) -> str:
     """SHA-256 of the Python source of ``packages`` where this process imports them from.
 
-    Read once per process (about 10 ms for the cycle packages' ~1 MB): a file edited while
-    a process runs keys that process's results as the code it started with, which is the
-    code it runs.
+    Read once per process, when first asked (about 10 ms for the cycle packages' ~1 MB):
+    the files as they were then. A file edited after a process imported it but before this
+    read keys that process's results as the edited code; a cluster run is safe either way,
+    since a worker that reads other files than its client is refused (``model.cluster``).
 
     Raises:
         ParameterError: For a name that is not an importable package.
