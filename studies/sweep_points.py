@@ -77,6 +77,7 @@ def point_record(
         lu_threads = int(newton.LU_THREADS)
     spec = settings.spec()
 
+    from model.code import code_version
     from model.spec import describe_point, geometry_folder, point_folder, point_label
 
     p = run.point
@@ -104,6 +105,7 @@ def point_record(
             "effects": {k: dict(v) for k, v in spec.effects.items()},
             "lu_threads": lu_threads,  # this worker's share of the cores (timings depend on it)
             "cached": run.cached,
+            "code": code_version().short(),  # the code of the key (model.code)
         },
         "mesh_stats": mesh_stats,
         "artifacts": artifacts,

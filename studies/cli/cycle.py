@@ -190,6 +190,7 @@ def _write_files(
     if the writing is interrupted.
     """
     from fe.cycle.loop_files import write_loop_csv, write_loop_png
+    from model.code import code_version
     from model.spec import describe_point, hinge_at, resolve_structural
     from studies.convergence import warning_lines
 
@@ -216,6 +217,7 @@ def _write_files(
         timings["fields"] = t_fields  # the ParaView series (recovery, stress, .vtu files)
     summary |= own | {"timings_s": timings, "wall_s": time.perf_counter() - t0}
     summary |= {"cutbacks": result.n_cutbacks, "warnings": warning_lines(result)}
+    summary["code"] = code_version().short()  # which code computed it (model.code)
     written.append(args.out / "result.json")
     written[-1].write_text(dumps(summary))
     return summary

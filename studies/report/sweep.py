@@ -24,8 +24,8 @@ from studies.report.parts import Html, Section, esc, figures, fmt, join, link, s
 from studies.report.sections import ReportBody
 from studies.report.surfaces import rsm_fit_sections
 
-NOT_SETTINGS = ("result_key", "cached", "lu_threads")
-"""Solver-record entries that are not settings (the key, whether read back, threads)."""
+NOT_SETTINGS = ("result_key", "cached", "lu_threads", "code")
+"""Solver-record entries that are not settings (the key, whether read back, threads, code)."""
 
 SETTING_WORDS = {
     "mu": "friction coefficient μ",

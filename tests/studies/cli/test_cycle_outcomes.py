@@ -14,6 +14,7 @@ import json
 import pytest
 
 from cad.errors import ConvergenceError
+from model.code import code_version
 from studies.cli.main import main
 
 MODEL = '[hinge]\nkind = "jenkins_pin"\n\n[cycle]\nincrements_per_stage = 12\n'
@@ -58,6 +59,7 @@ def test_a_clean_cycle_has_no_warning_and_no_cutbacks(cycle_cmd, capsys):
     assert "warning" not in capsys.readouterr().err
     summary = json.loads((out / "result.json").read_text())
     assert (summary["warnings"], summary["cutbacks"]) == ([], 0)
+    assert summary["code"] == code_version().short()  # which code computed it
 
 
 def test_recovered_cutbacks_are_counted_in_the_result_and_the_printed_summary(

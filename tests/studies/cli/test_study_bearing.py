@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from model.code import code_version
 from studies.cli.main import main
 
 EXAMPLE = Path(__file__).parents[3] / "studies" / "examples" / "bearing_coarse_2x2.toml"
@@ -41,6 +42,7 @@ def test_bearing_study_runs_traces_fits_and_reads_every_point_back(tmp_path, cap
     assert t["params"] == {"preload_N": float(rows[-1]["preload_N"]), "amplitude_N": 400.0}
     assert t["status"] == "ok"
     assert t["solver"]["result_key"]
+    assert t["solver"]["code"] == code_version().short()
     assert t["intact"]
 
     # a rerun finds every point in the trace; without the trace, every point in results/
