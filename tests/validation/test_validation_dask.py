@@ -111,3 +111,30 @@ def test_diagnose_on_an_existing_cluster_equals_the_in_process_run(
     assert here["verdict"] == "effect_missing"
     _same_diagnosis(here, there)
     assert there["stats"]["n_computed"] == here["stats"]["n_computed"] > 0
+
+
+@pytest.mark.slow
+def test_diagnose_refuses_a_cluster_whose_workers_run_other_code(jenkins, tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """Workers that import an edited copy of hingelab are refused before any cycle runs."""
+    import shutil
+
+    from model.code import ALL_PACKAGES
+
+    model = _model(tmp_path)
+    data = _data(tmp_path, model, capsys)
+    root, edited = Path(__file__).resolve().parents[2], tmp_path / "edited"
+    for package in ALL_PACKAGES:
+        shutil.copytree(
+            root / package, edited / package, ignore=shutil.ignore_patterns("__pycache__")
+        )
+    with (edited / "fe" / "__init__.py").open("a") as fh:
+        fh.write("# an edit this process does not have\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(edited), str(PLUGINS)])}
+    out = tmp_path / "there"
+    with external_cluster(tmp_path, env=env) as address:
+        argv = ["diagnose", str(model), str(data), "--json", "--out", str(out)]
+        assert main([*argv, "--scheduler", address]) == 1
+    err = capsys.readouterr().err
+    assert "runs other code than this process (source " in err, err
+    assert "(and 1 other worker(s))" in err
+    assert not list(out.glob("results/*.npz"))  # no cycle ran, none was stored
