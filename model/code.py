@@ -9,7 +9,9 @@ the libraries whose numbers enter a cycle (the mesher, the CAD kernel, the linea
 algebra). A Dask worker reports its own, and a cluster whose workers run other code is
 refused (``model.cluster.dispatch``): their cycles would be stored under this code's keys.
 
-Only the standard library is imported here: ``hingelab --version`` and a rerun read it.
+The digest and the library versions themselves are ``cad.provenance``'s (the solver's own
+caches key with them too). Only the standard library is imported: ``hingelab --version``
+and a rerun read it.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cad.errors import ParameterError
+from cad.provenance import CYCLE_LIBRARIES, library_versions, source_digest
 
 CYCLE_PACKAGES = ("cad", "mesh", "fe", "model")
 """The packages whose code makes a geometry, a mesh, a condensation or a cycle: their
@@ -33,10 +36,6 @@ every run) does not throw the cycles away."""
 ALL_PACKAGES = (*CYCLE_PACKAGES, "rsm", "validation", "studies")
 """Every package of the distribution: what a Dask worker must run the same of (a sweep's
 worker also writes the point's files) and what keys the paper's drawn figures."""
-
-CYCLE_LIBRARIES = ("build123d", "gmsh", "numpy", "scipy", "pypardiso", "mkl")
-"""Installed distributions whose numbers enter a cycle: the solids, the mesh, the dense
-and sparse linear algebra (PARDISO from the ``mkl`` wheel). Their versions key results."""
 
 
 @dataclass(frozen=True)
@@ -87,37 +86,6 @@ def package_version() -> str:
         return "unknown"
 
 
-def _library_version(name: str) -> str:
-    try:
-        return importlib.metadata.version(name)
-    except importlib.metadata.PackageNotFoundError:
-        return "absent"
-
-
-@functools.cache
-def source_digest(packages: tuple[str, ...] = CYCLE_PACKAGES) -> str:
-    """SHA-256 of the Python source of ``packages`` where this process imports them from.
-
-    Read once per process, when first asked (about 10 ms for the cycle packages' ~1 MB):
-    the files as they were then. A file edited after a process imported it but before this
-    read keys that process's results as the edited code; a cluster run is safe either way,
-    since a worker that reads other files than its client is refused (``model.cluster``).
-
-    Raises:
-        ParameterError: For a name that is not an importable package.
-    """
-    h = hashlib.sha256()
-    for name in packages:
-        spec = importlib.util.find_spec(name)
-        if spec is None or not spec.submodule_search_locations:
-            raise ParameterError(f"packages: {name!r} is not an importable package")
-        for root in sorted(Path(p) for p in spec.submodule_search_locations):
-            for path in sorted(root.rglob("*.py")):
-                rel = path.relative_to(root.parent).as_posix()
-                h.update(rel.encode() + b"\0" + path.read_bytes() + b"\0")
-    return h.hexdigest()
-
-
 @functools.cache
 def plugin_digest(module: str) -> str:
     """SHA-256 of the code of a plug-in's top-level package (or module) ``module`` belongs to.
@@ -144,5 +112,6 @@ def plugin_digest(module: str) -> str:
 @functools.cache
 def code_version(packages: tuple[str, ...] = CYCLE_PACKAGES) -> CodeVersion:
     """The version, the digest of ``packages``' source and the cycle libraries' versions."""
-    libraries = tuple(sorted((n, _library_version(n)) for n in CYCLE_LIBRARIES))
-    return CodeVersion(package_version(), source_digest(packages), libraries)
+    return CodeVersion(
+        package_version(), source_digest(packages), library_versions(CYCLE_LIBRARIES)
+    )

@@ -46,6 +46,7 @@ import scipy.sparse as sp
 
 from cad.bearing_geometry import BearingHingeParams
 from cad.errors import ParameterError
+from cad.provenance import library_versions, source_digest
 from fe.assembly import dofs_of
 from fe.bearing.one_ball import MESH_LEVELS, contact_points_of, model_bodies
 from fe.structure.condensed import Condensed
@@ -276,8 +277,18 @@ def window_rim(xyz: FloatArray, race_of: IntArray) -> npt.NDArray[np.bool_]:
     return rim
 
 
+RIG_CODE = ("cad", "mesh", "fe")
+"""The packages whose source keys a cached rig (with the libraries' versions): a rig built
+by other code is built again, not read back."""
+
+
 def rig_key(grid: BallBlockGrid, params: BearingHingeParams) -> str:
-    """Hash of what the rig depends on: grid, bearing geometry and material, format."""
+    """Hash of what the rig depends on: grid, bearing geometry and material, format, code.
+
+    The code is the source of ``RIG_CODE`` and the computing libraries' versions
+    (``cad.provenance``): the cache lives in the user's folder, shared by every checkout
+    and version of hingelab on the machine.
+    """
     geometry = {
         k: v
         for k, v in dataclasses.asdict(params).items()
@@ -295,7 +306,13 @@ def rig_key(grid: BallBlockGrid, params: BearingHingeParams) -> str:
         )
     }
     text = json.dumps(
-        {"grid": dataclasses.asdict(grid), "bearing": geometry, "format": RIG_FORMAT},
+        {
+            "grid": dataclasses.asdict(grid),
+            "bearing": geometry,
+            "format": RIG_FORMAT,
+            "code": source_digest(RIG_CODE),
+            "libraries": library_versions(),
+        },
         sort_keys=True,
         default=str,
     )

@@ -14,15 +14,9 @@ import pytest
 import model.code as code
 import model.spec as spec_module
 from cad.errors import DataError, ParameterError
+from cad.provenance import CYCLE_LIBRARIES, source_digest
 from model.cluster import _Drive, dispatch, other_code, worker_code
-from model.code import (
-    ALL_PACKAGES,
-    CYCLE_PACKAGES,
-    CodeVersion,
-    code_version,
-    plugin_digest,
-    source_digest,
-)
+from model.code import ALL_PACKAGES, CYCLE_PACKAGES, CodeVersion, code_version, plugin_digest
 from model.dispatch import Dispatcher
 from model.file import read_model
 from model.service import ModelService
@@ -70,7 +64,7 @@ def test_code_version_holds_the_version_the_source_and_the_cycle_libraries():
     v = code_version()
     assert v.version == code.package_version()
     assert v.source == source_digest(CYCLE_PACKAGES)
-    assert dict(v.libraries).keys() == set(code.CYCLE_LIBRARIES)
+    assert dict(v.libraries).keys() == set(CYCLE_LIBRARIES)
     assert v.short() == f"{v.version}+src.{v.source[:12]}"
     # the whole distribution is another digest than the packages that compute a cycle
     assert code_version(ALL_PACKAGES).source != v.source

@@ -192,6 +192,12 @@ def test_the_rig_is_cached_by_grid_and_bearing(tmp_path, params, rig, monkeypatc
     other = dataclasses.replace(params, inner_curvature_ratio=0.53)
     assert rig_key(MESH_LEVELS[0], other) != rig_key(MESH_LEVELS[0], params)
     assert rig_key(MESH_LEVELS[1], params) != rig_key(MESH_LEVELS[0], params)
+    # a rig built by other code (an edit of fe/, another gmsh) is built again, not read back
+    monkeypatch.setattr(ball_rig, "source_digest", lambda packages: "0" * 64)
+    assert rig_key(MESH_LEVELS[0], params) not in files[0].name
+    monkeypatch.setattr(ball_rig, "_MEMO", {})
+    with pytest.raises(AssertionError, match="the cached rig was rebuilt"):
+        load_or_build_rig(MESH_LEVELS[0], params, tmp_path)
 
 
 def test_full_balls_with_frictional_fits_are_refused_by_name():
