@@ -20,12 +20,12 @@ CYCLE_LIBRARIES = ("build123d", "gmsh", "numpy", "scipy", "pypardiso", "mkl")
 and sparse linear algebra (PARDISO from the ``mkl`` wheel). Their versions key results."""
 
 
-def installed_version(name: str) -> str:
-    """The installed version of distribution ``name``, or "absent"."""
+def installed_version(name: str, missing: str = "absent") -> str:
+    """The installed version of distribution ``name``, or ``missing``."""
     try:
         return importlib.metadata.version(name)
     except importlib.metadata.PackageNotFoundError:
-        return "absent"
+        return missing
 
 
 def library_versions(names: tuple[str, ...] = CYCLE_LIBRARIES) -> tuple[tuple[str, str], ...]:

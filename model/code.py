@@ -18,14 +18,13 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import importlib.metadata
 import importlib.util
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 from cad.errors import ParameterError
-from cad.provenance import CYCLE_LIBRARIES, library_versions, source_digest
+from cad.provenance import CYCLE_LIBRARIES, installed_version, library_versions, source_digest
 
 CYCLE_PACKAGES = ("cad", "mesh", "fe", "model")
 """The packages whose code makes a geometry, a mesh, a condensation or a cycle: their
@@ -57,11 +56,6 @@ class CodeVersion:
         """``0.1.0+src.1a2b3c4d5e6f``: the version and the first 12 digits of the source."""
         return f"{self.version}+src.{self.source[:12]}"
 
-    def digest(self) -> str:
-        """SHA-256 of all three fields, hex: one name for this code (a cache folder's)."""
-        text = "\n".join([self.version, self.source, *(f"{n} {v}" for n, v in self.libraries)])
-        return hashlib.sha256(text.encode()).hexdigest()
-
     def differences(self, other: CodeVersion) -> list[str]:
         """What differs from ``other``, one phrase each (empty when the same)."""
         out = []
@@ -80,10 +74,7 @@ class CodeVersion:
 
 def package_version() -> str:
     """The installed hingelab version ("unknown" when run from a bare source tree)."""
-    try:
-        return importlib.metadata.version("hingelab")
-    except importlib.metadata.PackageNotFoundError:
-        return "unknown"
+    return installed_version("hingelab", missing="unknown")
 
 
 @functools.cache
@@ -106,6 +97,7 @@ def plugin_digest(module: str) -> str:
     origin = spec.origin if spec is not None else getattr(sys.modules.get(module), "__file__", None)
     if not origin or not Path(origin).is_file():
         raise ParameterError(f"plug-in module {module!r}: its source cannot be found")
+    # fe.effects.plugins.file_hash, without its import (numpy: 0.4 s for --version)
     return hashlib.sha256(Path(origin).read_bytes()).hexdigest()
 
 

@@ -37,6 +37,7 @@ from model.code import code_version
 from model.spec import (
     DesignPoint,
     ModelSpec,
+    content_hash,
     geometry_folder,
     geometry_key,
     hinge_at,
@@ -198,7 +199,7 @@ class ModelService:
         cache = (
             None
             if self.cache_dir is None
-            else self.cache_dir / f"code-{code_version().digest()[:12]}"
+            else self.cache_dir / f"code-{content_hash(code_version())[:12]}"
         )
         with job_threads():  # the same numbers in process as on a worker
             built = spec.hinge_kind.build(structure_at(spec, point), spec.mesh, out, cache)
